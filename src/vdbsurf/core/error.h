@@ -1,0 +1,26 @@
+// Errors a user can cause. Every one names the input it is about, so the command line can print
+// one clear line and exit non-zero; everything else (std::exception) is an internal failure.
+#pragma once
+#include <stdexcept>
+#include <string>
+
+namespace vdbsurf {
+
+class Error : public std::runtime_error {
+public:
+    // input: what the user gave (a file path, "--expr", "--voxel-size", a grid name ...).
+    Error(std::string input, const std::string& message)
+        : std::runtime_error(input.empty() ? message : input + ": " + message), mInput(std::move(input)) {}
+    const std::string& input() const { return mInput; }
+
+private:
+    std::string mInput;
+};
+
+// Thrown when the user interrupts long work (SIGINT/SIGTERM) or a caller cancels it.
+class Cancelled : public std::runtime_error {
+public:
+    Cancelled() : std::runtime_error("cancelled") {}
+};
+
+} // namespace vdbsurf

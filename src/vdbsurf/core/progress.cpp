@@ -1,0 +1,45 @@
+#include "vdbsurf/core/progress.h"
+
+#include "vdbsurf/core/cancel.h"
+
+#include <cstdio>
+#include <unistd.h>
+
+namespace vdbsurf {
+
+namespace {
+constexpr std::int64_t kPrintIntervalNs = 200'000'000;
+}
+
+bool Progress::enabledForTerminal() { return ::isatty(STDERR_FILENO) == 1; }
+
+Progress::Progress(std::string stage, std::uint64_t total, const CancelToken* cancel)
+    : mStage(std::move(stage)), mTotal(total), mCancel(cancel), mStart(std::chrono::steady_clock::now()),
+      mEnabled(enabledForTerminal()) {
+    mNextPrintNs.store(kPrintIntervalNs);
+}
+
+Progress::~Progress() {
+    if (mEnabled && mNextPrintNs.load() < 0) print(true); // only finish a line we started
+}
+
+void Progress::advance(std::uint64_t units) {
+    if (mCancel) mCancel->check();
+    mDone.fetch_add(units, std::memory_order_relaxed);
+    if (!mEnabled) return;
+    const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - mStart).count();
+    std::int64_t next = mNextPrintNs.load(std::memory_order_relaxed);
+    const std::int64_t due = next < 0 ? -next : next;
+    if (now < due) return;
+    // Negative marks "a line was printed"; whoever wins the exchange prints.
+    if (mNextPrintNs.compare_exchange_strong(next, -(now + kPrintIntervalNs))) print(false);
+}
+
+void Progress::print(bool final) {
+    std::lock_guard<std::mutex> lock(mPrintMutex);
+    const double frac = mTotal ? double(mDone.load()) / double(mTotal) : 1.0;
+    std::fprintf(stderr, "\r%s: %5.1f%%%s", mStage.c_str(), 100.0 * (final ? 1.0 : frac), final ? "\n" : "");
+    std::fflush(stderr);
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,25 @@
+#include "vdbsurf/field/expression_field.h"
+
+#include "vdbsurf/core/error.h"
+
+#include <cmath>
+
+namespace vdbsurf {
+
+ExpressionField::ExpressionField(const std::string& formula, const Box3& box)
+    : mProgram(parseExpression(formula, "--expr")), mBox(box) {
+    for (int a = 0; a < 3; ++a) {
+        if (!std::isfinite(box.min[a]) || !std::isfinite(box.max[a]))
+            throw Error("--bbox", "bounds must be finite numbers");
+        if (!(box.max[a] > box.min[a]))
+            throw Error("--bbox", "each maximum must be larger than its minimum (X0,Y0,Z0,X1,Y1,Z1)");
+    }
+}
+
+Vec3d ExpressionField::gradient(const Vec3d& p) const {
+    Vec3d g;
+    evalGradient(mProgram, p, g);
+    return g;
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,26 @@
+// A Field given by a user formula over a box: negative inside, surface at iso 0 by default.
+#pragma once
+#include "vdbsurf/field/expression.h"
+#include "vdbsurf/field/field.h"
+
+namespace vdbsurf {
+
+class ExpressionField final : public Field {
+public:
+    // Throws Error naming "--expr" (with the column) or "--bbox".
+    ExpressionField(const std::string& formula, const Box3& box);
+
+    double value(const Vec3d& p) const override { return evalValue(mProgram, p); }
+    Vec3d gradient(const Vec3d& p) const override;
+    Interval bounds(const Box3& box) const override { return evalBounds(mProgram, box); }
+    Inside inside() const override { return Inside::Below; }
+    Box3 domain() const override { return mBox; }
+    std::string describe() const override { return "--expr \"" + mProgram.source + "\""; }
+    const ExprProgram& program() const { return mProgram; }
+
+private:
+    ExprProgram mProgram;
+    Box3 mBox;
+};
+
+} // namespace vdbsurf

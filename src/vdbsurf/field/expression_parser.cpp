@@ -1,0 +1,175 @@
+// Recursive-descent parser for formulas, emitting postfix code for a stack machine.
+// Grammar (lowest to highest precedence):
+//   sum     := product (('+' | '-') product)*
+//   product := unary (('*' | '/') unary)*
+//   unary   := '-' unary | '+' unary | power
+//   power   := primary ('^' unary)?          (right associative; -x^2 is -(x^2))
+//   primary := number | x | y | z | pi | name '(' sum (',' sum)* ')' | '(' sum ')'
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/field/expression.h"
+
+#include <cctype>
+#include <cstdlib>
+#include <map>
+
+namespace vdbsurf {
+
+namespace {
+
+struct FunctionSpec {
+    ExprOp op;
+    int minArgs, maxArgs; // maxArgs < 0: unbounded
+};
+
+const std::map<std::string, FunctionSpec>& functions() {
+    static const std::map<std::string, FunctionSpec> table = {
+        {"abs", {ExprOp::Abs, 1, 1}},   {"sqrt", {ExprOp::Sqrt, 1, 1}}, {"exp", {ExprOp::Exp, 1, 1}},
+        {"log", {ExprOp::Log, 1, 1}},   {"sin", {ExprOp::Sin, 1, 1}},   {"cos", {ExprOp::Cos, 1, 1}},
+        {"tan", {ExprOp::Tan, 1, 1}},   {"pow", {ExprOp::Pow, 2, 2}},   {"clamp", {ExprOp::Clamp, 3, 3}},
+        {"min", {ExprOp::Min, 2, -1}},  {"max", {ExprOp::Max, 2, -1}},
+    };
+    return table;
+}
+
+class Parser {
+public:
+    Parser(const std::string& text, const std::string& input) : mText(text), mInput(input) {
+        mProg.source = text;
+    }
+
+    ExprProgram run() {
+        skipSpace();
+        if (mPos >= mText.size()) fail(mPos, "the formula is empty");
+        sum();
+        skipSpace();
+        if (mPos < mText.size()) fail(mPos, std::string("unexpected '") + mText[mPos] + "'");
+        return std::move(mProg);
+    }
+
+private:
+    [[noreturn]] void fail(std::size_t pos, const std::string& what) const {
+        throw Error(mInput, what + " at column " + std::to_string(pos + 1) + "\n  " + mText + "\n  " +
+                                std::string(pos, ' ') + "^");
+    }
+
+    void skipSpace() {
+        while (mPos < mText.size() && std::isspace(static_cast<unsigned char>(mText[mPos]))) ++mPos;
+    }
+    bool accept(char c) {
+        skipSpace();
+        if (mPos < mText.size() && mText[mPos] == c) { ++mPos; return true; }
+        return false;
+    }
+    void emit(ExprOp op, std::uint32_t arg, int stackDelta) {
+        mProg.code.push_back({op, arg});
+        mDepth += stackDelta;
+        if (mDepth > mProg.maxStack) mProg.maxStack = mDepth;
+        if (mDepth > kMaxStack) fail(mPos, "the formula is too long (more than " + std::to_string(kMaxStack) + " pending terms)");
+    }
+
+    void sum() {
+        product();
+        for (;;) {
+            if (accept('+')) { product(); emit(ExprOp::Add, 0, -1); }
+            else if (accept('-')) { product(); emit(ExprOp::Sub, 0, -1); }
+            else return;
+        }
+    }
+    void product() {
+        unary();
+        for (;;) {
+            if (accept('*')) { unary(); emit(ExprOp::Mul, 0, -1); }
+            else if (accept('/')) { unary(); emit(ExprOp::Div, 0, -1); }
+            else return;
+        }
+    }
+    void unary() {
+        // Nesting depth bounds both this parser's recursion and the evaluators' fixed stacks.
+        if (++mNesting > kMaxNesting) fail(mPos, "the formula nests deeper than " + std::to_string(kMaxNesting) + " levels");
+        struct Leave { int& n; ~Leave() { --n; } } leave{mNesting};
+        if (accept('-')) { unary(); emit(ExprOp::Neg, 0, 0); return; }
+        if (accept('+')) { unary(); return; }
+        power();
+    }
+    void power() {
+        primary();
+        if (accept('^')) { unary(); emit(ExprOp::Pow, 0, -1); }
+    }
+    void primary() {
+        skipSpace();
+        if (mPos >= mText.size()) fail(mPos, "the formula ends where a number, variable or '(' was expected");
+        const char c = mText[mPos];
+        if (std::isdigit(static_cast<unsigned char>(c)) || c == '.') { number(); return; }
+        if (std::isalpha(static_cast<unsigned char>(c)) || c == '_') { name(); return; }
+        if (c == '(') {
+            const std::size_t open = mPos++;
+            sum();
+            if (!accept(')')) fail(mPos < mText.size() ? mPos : open, "missing ')' for the '(' at column " + std::to_string(open + 1));
+            return;
+        }
+        fail(mPos, std::string("unexpected '") + c + "'");
+    }
+    void number() {
+        const std::size_t start = mPos;
+        const char* begin = mText.c_str() + mPos;
+        char* end = nullptr;
+        const double v = std::strtod(begin, &end);
+        if (end == begin) fail(start, "malformed number");
+        mPos += std::size_t(end - begin);
+        if (mPos < mText.size() && (std::isalpha(static_cast<unsigned char>(mText[mPos])) || mText[mPos] == '_'))
+            fail(mPos, "a number runs into a name (write '2*x', not '2x')");
+        pushConstant(v);
+    }
+    void pushConstant(double v) {
+        mProg.constants.push_back(v);
+        emit(ExprOp::Const, std::uint32_t(mProg.constants.size() - 1), +1);
+    }
+    void name() {
+        const std::size_t start = mPos;
+        while (mPos < mText.size() && (std::isalnum(static_cast<unsigned char>(mText[mPos])) || mText[mPos] == '_')) ++mPos;
+        const std::string id = mText.substr(start, mPos - start);
+        if (id == "x") { emit(ExprOp::X, 0, +1); return; }
+        if (id == "y") { emit(ExprOp::Y, 0, +1); return; }
+        if (id == "z") { emit(ExprOp::Z, 0, +1); return; }
+        if (id == "pi") { pushConstant(3.14159265358979323846); return; }
+        const auto fn = functions().find(id);
+        if (fn == functions().end()) {
+            fail(start, "unknown name '" + id + "' (variables: x, y, z, pi; functions: abs, min, max, sqrt, exp, log, "
+                        "sin, cos, tan, pow, clamp)");
+        }
+        if (!accept('(')) fail(mPos, "'" + id + "' must be followed by '('");
+        int args = 0;
+        if (accept(')')) fail(mPos - 1, "'" + id + "' needs arguments");
+        for (;;) {
+            sum();
+            ++args;
+            if (accept(',')) continue;
+            if (accept(')')) break;
+            skipSpace();
+            fail(mPos, mPos < mText.size() ? "expected ',' or ')' in the arguments of '" + id + "'"
+                                          : "missing ')' after the arguments of '" + id + "'");
+        }
+        const FunctionSpec& spec = fn->second;
+        if (args < spec.minArgs || (spec.maxArgs >= 0 && args > spec.maxArgs)) {
+            std::string want = spec.maxArgs < 0 ? std::to_string(spec.minArgs) + " or more"
+                               : spec.minArgs == spec.maxArgs ? std::to_string(spec.minArgs)
+                                                              : std::to_string(spec.minArgs) + "-" + std::to_string(spec.maxArgs);
+            fail(start, "'" + id + "' takes " + want + " argument" + (want == "1" ? "" : "s") + ", not " + std::to_string(args));
+        }
+        emit(spec.op, std::uint32_t(args), 1 - args);
+    }
+
+    const std::string& mText;
+    const std::string& mInput;
+    std::size_t mPos = 0;
+    int mDepth = 0;
+    int mNesting = 0;
+    static constexpr int kMaxNesting = 200;
+    ExprProgram mProg;
+};
+
+} // namespace
+
+ExprProgram parseExpression(const std::string& text, const std::string& input) { return Parser(text, input).run(); }
+
+} // namespace vdbsurf

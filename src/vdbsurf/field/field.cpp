@@ -1,0 +1,55 @@
+#include "vdbsurf/field/field.h"
+
+#include <algorithm>
+
+namespace vdbsurf {
+
+void Field::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
+                        const std::uint8_t* needed, double* out) const {
+    std::size_t n = 0;
+    for (int k = 0; k < dims.z; ++k)
+        for (int j = 0; j < dims.y; ++j)
+            for (int i = 0; i < dims.x; ++i, ++n) {
+                if (needed && !needed[n]) continue;
+                out[n] = value(frame.nodeWorld(first.x + i, first.y + j, first.z + k));
+            }
+}
+
+double Field::edgeCrossing(const Vec3d& a, const Vec3d& b, double va, double vb, double iso) const {
+    return refineCrossing(*this, a, b, va, vb, iso);
+}
+
+double refineCrossing(const Field& field, const Vec3d& a, const Vec3d& b, double va, double vb, double iso,
+                      int maxSteps) {
+    double t0 = 0.0, t1 = 1.0;
+    double f0 = va - iso, f1 = vb - iso;
+    if (f0 == 0.0) return 0.0;
+    if (f1 == 0.0) return 1.0;
+    const double scale = std::max(std::fabs(f0), std::fabs(f1));
+    // Illinois: halve the weight of an end point that is retained twice, which keeps regula falsi
+    // superlinear on convex pieces; bisect while an end is infinite (1/r-style formulas).
+    int side = 0;
+    double t = 0.5;
+    for (int step = 0; step < maxSteps; ++step) {
+        if (std::isfinite(f0) && std::isfinite(f1)) t = t0 + (t1 - t0) * (f0 / (f0 - f1));
+        else t = 0.5 * (t0 + t1);
+        if (!(t > t0 && t < t1)) t = 0.5 * (t0 + t1);
+        const double ft = field.value(a + (b - a) * t) - iso;
+        if (!std::isfinite(scale) ? ft == 0.0 : std::fabs(ft) <= 1e-12 * scale) return t;
+        if (std::isnan(ft)) break;
+        if ((ft < 0) == (f0 < 0)) {
+            t0 = t; f0 = ft;
+            if (side == -1 && std::isfinite(f1)) f1 *= 0.5;
+            side = -1;
+        } else {
+            t1 = t; f1 = ft;
+            if (side == 1 && std::isfinite(f0)) f0 *= 0.5;
+            side = 1;
+        }
+        if (t1 - t0 < 1e-9) break;
+    }
+    if (std::isfinite(f0) && std::isfinite(f1)) return t0 + (t1 - t0) * (f0 / (f0 - f1));
+    return 0.5 * (t0 + t1);
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,82 @@
+// Field: the one abstraction the mesher sees. A scalar function of world position with its
+// gradient, conservative bounds over a box, and the side that is inside. Implementations:
+// GridField (an OpenVDB float/double grid), ExpressionField (a user formula), and later the
+// density scene. Bounds are what make sparsity honest: a box whose bounds do not straddle the iso
+// value cannot hold surface and is never visited.
+#pragma once
+#include "vdbsurf/core/lattice_frame.h"
+#include "vdbsurf/core/vec3.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <optional>
+#include <string>
+
+namespace vdbsurf {
+
+struct Interval {
+    double lo = -std::numeric_limits<double>::infinity();
+    double hi = std::numeric_limits<double>::infinity();
+    bool contains(double v) const { return v >= lo && v <= hi; }
+};
+
+// Does [lo, hi], widened by a tolerance for the rounding of point evaluations, contain iso?
+inline bool straddles(const Interval& b, double iso) {
+    const double tol = 1e-9 * std::max({1.0, std::fabs(b.lo), std::fabs(b.hi), std::fabs(iso)});
+    return b.lo - tol <= iso && iso <= b.hi + tol;
+}
+
+// Level sets and formulas are negative inside (Below); fog volumes and densities are dense
+// inside (Above).
+enum class Inside { Below, Above };
+
+inline bool isInside(double v, double iso, Inside side) { return side == Inside::Below ? v < iso : v > iso; }
+
+class Field {
+public:
+    virtual ~Field() = default;
+
+    virtual double value(const Vec3d& p) const = 0;
+    virtual Vec3d gradient(const Vec3d& p) const = 0;
+    // Conservative: every value() at a point of the closed box lies in the result.
+    virtual Interval bounds(const Box3& box) const = 0;
+    virtual Inside inside() const = 0;
+    // Outside this box the field is constant, so no surface can be there.
+    virtual Box3 domain() const = 0;
+    // What the user gave, for messages and metadata ("file.vdb:grid", "--expr ...").
+    virtual std::string describe() const = 0;
+    // The iso value a user means when they give none (0 for level sets, 0.5 for fog).
+    virtual double defaultIso() const { return inside() == Inside::Below ? 0.0 : 0.5; }
+
+    // Lattice spacing when the user gives none (a grid's own voxel size), if the field has one.
+    virtual std::optional<double> naturalSpacing() const { return std::nullopt; }
+    // Where lattice nodes should sit for spacing h (a grid's voxel centres when h is a multiple).
+    virtual LatticeFrame naturalFrame(double h) const { return {domain().min, h}; }
+
+    // Values at the nodes first + (i, j, k), 0 <= i < dims.x ..., x fastest. Only nodes whose
+    // needed[] entry is non-zero must be filled (needed may be null: all). Fields override this
+    // to sample blocks faster than one value() call per node.
+    virtual void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
+                             const std::uint8_t* needed, double* out) const;
+
+    // True when, on this frame, a cell's bounds are exactly the range of its 8 corner values
+    // (a grid meshed at its own voxel size), so the lattice need not ask bounds() per cell.
+    virtual bool cellBoundsAreCornerRange(const LatticeFrame& frame) const { return false; }
+
+    // True when, on this frame, the field is linear along every lattice edge, so the crossing
+    // on an undeformed edge is plain linear interpolation of the two node values.
+    virtual bool edgesAreLinear(const LatticeFrame& frame) const { return false; }
+
+    // Where along the segment a -> b (values va, vb on opposite sides of iso) the field crosses
+    // iso, as t in [0, 1]. The default refines linear interpolation on the true field
+    // (Illinois regula falsi), because a formula or a resampled grid is not linear along an edge.
+    virtual double edgeCrossing(const Vec3d& a, const Vec3d& b, double va, double vb, double iso) const;
+};
+
+// Illinois regula falsi on f(a + t (b - a)) - iso, bracketed, at most maxSteps evaluations.
+double refineCrossing(const Field& field, const Vec3d& a, const Vec3d& b, double va, double vb, double iso,
+                      int maxSteps = 8);
+
+} // namespace vdbsurf

@@ -1,0 +1,531 @@
+#include "vdbsurf/field/grid_field.h"
+
+#include "vdbsurf/core/error.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/Interpolation.h>
+#include <openvdb/tree/LeafManager.h>
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <sstream>
+#include <unordered_map>
+
+namespace vdbsurf {
+
+namespace {
+
+using openvdb::Coord;
+using openvdb::CoordBBox;
+
+struct MinMax {
+    double lo = std::numeric_limits<double>::infinity();
+    double hi = -std::numeric_limits<double>::infinity();
+    void add(double v) { lo = std::min(lo, v); hi = std::max(hi, v); }
+    void add(const MinMax& o) { lo = std::min(lo, o.lo); hi = std::max(hi, o.hi); }
+};
+
+Vec3d toVec(const openvdb::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
+openvdb::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
+
+bool contains(const CoordBBox& outer, const CoordBBox& inner) {
+    return outer.min().x() <= inner.min().x() && outer.min().y() <= inner.min().y() && outer.min().z() <= inner.min().z() &&
+           outer.max().x() >= inner.max().x() && outer.max().y() >= inner.max().y() && outer.max().z() >= inner.max().z();
+}
+
+std::string coordText(const Coord& c) {
+    std::ostringstream s;
+    s << "(" << c.x() << ", " << c.y() << ", " << c.z() << ")";
+    return s.str();
+}
+
+} // namespace
+
+// Type-erased grid access; one implementation per value type, in this translation unit only.
+struct GridField::Impl {
+    virtual ~Impl() = default;
+    virtual double value(const Vec3d& p) const = 0;
+    virtual Vec3d gradient(const Vec3d& p) const = 0;
+    virtual Interval bounds(const Box3& box) const = 0;
+    virtual Box3 domain() const = 0;
+    virtual Interval valueRange() const = 0;
+    virtual double voxelSize() const = 0;
+    virtual LatticeFrame naturalFrame(double h) const = 0;
+    virtual void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
+                             const std::uint8_t* needed, double* out) const = 0;
+    virtual bool directStride(const LatticeFrame& frame, int& stride, Coord& offset) const = 0;
+    virtual bool cellsInsideVoxelCells(const LatticeFrame& frame) const = 0;
+    virtual bool piecewiseLinearCrossing(const Vec3d& a, const Vec3d& b, double iso, Inside side, double& t) const = 0;
+    virtual GridBaseCPtr grid() const = 0;
+};
+
+namespace {
+
+template <typename GridT>
+class TypedGrid final : public GridField::Impl {
+public:
+    using TreeT = typename GridT::TreeType;
+    using LeafT = typename TreeT::LeafNodeType;
+    using RootT = typename TreeT::RootNodeType;
+    using Node2T = typename RootT::ChildNodeType;
+    using Node1T = typename Node2T::ChildNodeType;
+    using Acc = openvdb::tree::ValueAccessor<const TreeT, /*IsSafe=*/false>;
+
+    TypedGrid(typename GridT::ConstPtr grid, const std::string& label) : mGrid(std::move(grid)), mTree(mGrid->constTree()) {
+        const openvdb::math::MapBase& map = *mGrid->transform().baseMap();
+        if (!map.isLinear())
+            throw Error(label, "has a non-linear (frustum) transform; vdbsurf samples grids with linear transforms only");
+        const openvdb::Mat4d m = map.getAffineMap()->getConstMat4();
+        mAxisAligned = true;
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c)
+                if (r != c && m(r, c) != 0.0) mAxisAligned = false;
+        const openvdb::Vec3d vs = mGrid->voxelSize();
+        mAxisAligned = mAxisAligned && m(0, 0) > 0 && m(0, 0) == m(1, 1) && m(1, 1) == m(2, 2);
+        mVoxel = std::min({vs.x(), vs.y(), vs.z()});
+        if (!(mVoxel > 0) || !std::isfinite(mVoxel)) throw Error(label, "has a degenerate transform (voxel size 0)");
+        mOrigin = toVec(mGrid->indexToWorld(openvdb::Vec3d(0.0)));
+        computeMinMax(label);
+        computeDomain(label);
+    }
+
+    GridBaseCPtr grid() const override { return mGrid; }
+    double voxelSize() const override { return mVoxel; }
+    Interval valueRange() const override { return {mAll.lo, mAll.hi}; }
+    Box3 domain() const override { return mDomain; }
+
+    openvdb::Vec3d worldToIndex(const Vec3d& p) const {
+        if (mAxisAligned) return openvdb::Vec3d((p.x - mOrigin.x) / mVoxel, (p.y - mOrigin.y) / mVoxel, (p.z - mOrigin.z) / mVoxel);
+        return mGrid->worldToIndex(toVdb(p));
+    }
+
+    double value(const Vec3d& p) const override {
+        Acc acc(mTree);
+        return double(openvdb::tools::BoxSampler::sample(acc, worldToIndex(p)));
+    }
+
+    Vec3d gradient(const Vec3d& p) const override {
+        // Central differences of the trilinear interpolant half a voxel either side, mapped to
+        // world space through the inverse Jacobian transpose.
+        Acc acc(mTree);
+        const openvdb::Vec3d ip = worldToIndex(p);
+        openvdb::Vec3d g;
+        for (int a = 0; a < 3; ++a) {
+            openvdb::Vec3d lo = ip, hi = ip;
+            lo[a] -= 0.5;
+            hi[a] += 0.5;
+            g[a] = double(openvdb::tools::BoxSampler::sample(acc, hi)) - double(openvdb::tools::BoxSampler::sample(acc, lo));
+        }
+        return toVec(mGrid->transform().baseMap()->applyIJT(g));
+    }
+
+    Interval bounds(const Box3& box) const override {
+        openvdb::Vec3d lo, hi;
+        if (mAxisAligned) {
+            lo = worldToIndex(box.min);
+            hi = worldToIndex(box.max);
+        } else {
+            lo = openvdb::Vec3d(std::numeric_limits<double>::infinity());
+            hi = -lo;
+            for (int c = 0; c < 8; ++c) {
+                const Vec3d corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y, (c & 4) ? box.max.z : box.min.z);
+                const openvdb::Vec3d ip = worldToIndex(corner);
+                lo = openvdb::math::minComponent(lo, ip);
+                hi = openvdb::math::maxComponent(hi, ip);
+            }
+        }
+        // Between voxel planes the trilinear interpolant is multilinear, so over a box that
+        // spans only a few voxel cells its range is the range of its values at the box's corners
+        // and where the box meets the voxel planes: exact, and much tighter than the stored
+        // values when the mesh lattice is finer than the grid.
+        std::array<std::array<double, 5>, 3> ticks;
+        std::array<int, 3> nticks{};
+        bool fewCells = std::isfinite(lo.x() + lo.y() + lo.z() + hi.x() + hi.y() + hi.z());
+        for (int a = 0; a < 3 && fewCells; ++a) {
+            ticks[a][0] = lo[a];
+            int n = 1;
+            for (double plane = std::floor(lo[a]) + 1; plane < hi[a] && fewCells; plane += 1) {
+                if (n >= 4) fewCells = false;
+                else ticks[a][std::size_t(n++)] = plane;
+            }
+            ticks[a][std::size_t(n++)] = hi[a];
+            nticks[std::size_t(a)] = n;
+        }
+        if (fewCells) {
+            Acc acc(mTree);
+            MinMax mm;
+            for (int i = 0; i < nticks[0]; ++i)
+                for (int j = 0; j < nticks[1]; ++j)
+                    for (int k = 0; k < nticks[2]; ++k)
+                        mm.add(double(openvdb::tools::BoxSampler::sample(
+                            acc, openvdb::Vec3d(ticks[0][std::size_t(i)], ticks[1][std::size_t(j)], ticks[2][std::size_t(k)]))));
+            return {mm.lo, mm.hi};
+        }
+        // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1.
+        const CoordBBox ib(clampCoord(lo, 0), clampCoord(hi, 1));
+        MinMax mm;
+        query(ib, mm);
+        return {mm.lo, mm.hi};
+    }
+
+    LatticeFrame naturalFrame(double h) const override {
+        if (mAxisAligned) return {mOrigin, h};
+        return {mDomain.min, h};
+    }
+
+    bool directStride(const LatticeFrame& frame, int& stride, Coord& offset) const override {
+        if (!mAxisAligned) return false;
+        const double m = frame.h / mVoxel;
+        const double mr = std::nearbyint(m);
+        if (mr < 1 || std::fabs(m - mr) > 1e-9 * mr) return false;
+        const Vec3d o = (frame.origin - mOrigin) / mVoxel;
+        for (int a = 0; a < 3; ++a) {
+            if (std::fabs(o[a] - std::nearbyint(o[a])) > 1e-6) return false;
+            offset[a] = int(std::nearbyint(o[a]));
+        }
+        stride = int(mr);
+        return true;
+    }
+
+    // Do lattice cells never cross a voxel plane (h = voxel / k, nodes on the voxel planes)? Then a
+    // cell's bounds are its corners' range, the interpolant being multilinear inside.
+    bool cellsInsideVoxelCells(const LatticeFrame& frame) const override {
+        if (!mAxisAligned) return false;
+        const double k = mVoxel / frame.h;
+        const double kr = std::nearbyint(k);
+        if (kr < 1 || std::fabs(k - kr) > 1e-6 * kr) return false;
+        const Vec3d o = (frame.origin - mOrigin) / frame.h;
+        for (int a = 0; a < 3; ++a)
+            if (std::fabs(o[a] - std::nearbyint(o[a])) > 1e-6) return false;
+        return true;
+    }
+
+    void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
+                     double* out) const override {
+        int stride = 0;
+        Coord offset;
+        Acc acc(mTree);
+        if (!directStride(frame, stride, offset)) {
+            std::size_t n = 0;
+            for (int k = 0; k < dims.z; ++k)
+                for (int j = 0; j < dims.y; ++j)
+                    for (int i = 0; i < dims.x; ++i, ++n) {
+                        if (needed && !needed[n]) continue;
+                        const Vec3d p = frame.nodeWorld(first.x + i, first.y + j, first.z + k);
+                        out[n] = double(openvdb::tools::BoxSampler::sample(acc, worldToIndex(p)));
+                    }
+            return;
+        }
+        const Coord base(offset.x() + stride * first.x, offset.y() + stride * first.y, offset.z() + stride * first.z);
+        if (stride == 1 && dims.x == 9 && dims.y == 9 && dims.z == 9 && (base.x() & 7) == 0 && (base.y() & 7) == 0 &&
+            (base.z() & 7) == 0) {
+            sampleLeafBlock(acc, base, out);
+            return;
+        }
+        std::size_t n = 0;
+        for (int k = 0; k < dims.z; ++k)
+            for (int j = 0; j < dims.y; ++j)
+                for (int i = 0; i < dims.x; ++i, ++n) {
+                    if (needed && !needed[n]) continue;
+                    out[n] = double(acc.getValue(Coord(base.x() + stride * i, base.y() + stride * j, base.z() + stride * k)));
+                }
+    }
+
+    bool piecewiseLinearCrossing(const Vec3d& a, const Vec3d& b, double iso, Inside side, double& t) const override {
+        // Along a line through voxel centres parallel to an axis, the trilinear interpolant is the
+        // piecewise-linear interpolant of the voxel values on that line: its crossing is exact.
+        if (!mAxisAligned) return false;
+        const openvdb::Vec3d ia = worldToIndex(a), ib = worldToIndex(b);
+        int axis = -1;
+        for (int k = 0; k < 3; ++k) {
+            if (std::fabs(ia[k] - ib[k]) > 1e-9) {
+                if (axis >= 0) return false;
+                axis = k;
+            }
+        }
+        if (axis < 0) return false;
+        Coord c;
+        for (int k = 0; k < 3; ++k) {
+            if (k == axis) continue;
+            if (std::fabs(ia[k] - std::nearbyint(ia[k])) > 1e-9) return false;
+            c[k] = int(std::nearbyint(ia[k]));
+        }
+        const double s0 = ia[axis], s1 = ib[axis];
+        const double dir = s1 > s0 ? 1.0 : -1.0;
+        Acc acc(mTree);
+        auto sampleAt = [&](double s) {
+            openvdb::Vec3d q = ia;
+            q[axis] = s;
+            return double(openvdb::tools::BoxSampler::sample(acc, q));
+        };
+        // Breakpoints strictly between the ends, walked from a to b.
+        double prevS = s0, prevV = sampleAt(s0);
+        const bool startInside = isInside(prevV, iso, side);
+        double s = dir > 0 ? std::floor(s0) + 1.0 : std::ceil(s0) - 1.0;
+        for (;; s += dir) {
+            const bool last = dir > 0 ? s >= s1 - 1e-9 : s <= s1 + 1e-9;
+            const double cs = last ? s1 : s;
+            const double cv = sampleAt(cs);
+            if (isInside(cv, iso, side) != startInside) {
+                const double local = (iso - prevV) / (cv - prevV);
+                const double sc = prevS + (cs - prevS) * std::clamp(local, 0.0, 1.0);
+                t = std::clamp((sc - s0) / (s1 - s0), 0.0, 1.0);
+                return true;
+            }
+            if (last) break;
+            prevS = cs;
+            prevV = cv;
+        }
+        return false; // no sign change found on the samples: fall back to generic refinement
+    }
+
+private:
+    static Coord clampCoord(const openvdb::Vec3d& v, int add) {
+        auto c = [&](double x) {
+            const double f = std::floor(x) + add;
+            return int(std::clamp(f, -double(1 << 30), double(1 << 30)));
+        };
+        return Coord(c(v.x()), c(v.y()), c(v.z()));
+    }
+
+    // Block of 9^3 voxels starting at a leaf origin: 8^3 from that leaf, the +1 faces from up to
+    // seven neighbours, read straight from leaf buffers.
+    void sampleLeafBlock(Acc& acc, const Coord& base, double* out) const {
+        for (int d = 0; d < 8; ++d) {
+            const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
+            const Coord lo(base.x() + 8 * dx, base.y() + 8 * dy, base.z() + 8 * dz);
+            const int nx = dx ? 1 : 8, ny = dy ? 1 : 8, nz = dz ? 1 : 8;
+            const int ox = 8 * dx, oy = 8 * dy, oz = 8 * dz;
+            if (const LeafT* leaf = acc.probeConstLeaf(lo)) {
+                const auto* data = leaf->buffer().data();
+                for (int k = 0; k < nz; ++k)
+                    for (int j = 0; j < ny; ++j)
+                        for (int i = 0; i < nx; ++i)
+                            out[(oz + k) * 81 + (oy + j) * 9 + (ox + i)] = double(data[(i << 6) + (j << 3) + k]);
+            } else {
+                const double v = double(acc.getValue(lo));
+                for (int k = 0; k < nz; ++k)
+                    for (int j = 0; j < ny; ++j)
+                        for (int i = 0; i < nx; ++i) out[(oz + k) * 81 + (oy + j) * 9 + (ox + i)] = v;
+            }
+        }
+    }
+
+    void computeMinMax(const std::string& label) {
+        openvdb::tree::LeafManager<const TreeT> leaves(mTree);
+        std::vector<MinMax> leafMM(leaves.leafCount());
+        std::vector<std::int64_t> bad(leaves.leafCount(), -1);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount()), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                const LeafT& leaf = leaves.leaf(i);
+                const auto* data = leaf.buffer().data();
+                MinMax mm;
+                for (openvdb::Index n = 0; n < LeafT::SIZE; ++n) {
+                    const double v = double(data[n]);
+                    if (!std::isfinite(v)) { bad[i] = std::int64_t(n); break; }
+                    mm.add(v);
+                }
+                leafMM[i] = mm;
+            }
+        });
+        for (std::size_t i = 0; i < bad.size(); ++i) {
+            if (bad[i] >= 0) {
+                const LeafT& leaf = leaves.leaf(i);
+                const double v = double(leaf.getValue(openvdb::Index(bad[i])));
+                throw Error(label, std::string("holds ") + (std::isnan(v) ? "NaN" : "an infinite value") + " at voxel " +
+                                       coordText(leaf.offsetToGlobalCoord(openvdb::Index(bad[i]))));
+            }
+        }
+        for (std::size_t i = 0; i < leafMM.size(); ++i) mCache.emplace(&leaves.leaf(i), leafMM[i]);
+
+        auto tile = [&](double v, const Coord& at) {
+            if (!std::isfinite(v))
+                throw Error(label, std::string("holds ") + (std::isnan(v) ? "NaN" : "an infinite value") + " in the tile at " + coordText(at));
+        };
+        const RootT& root = mTree.root();
+        const double bg = double(root.background());
+        if (!std::isfinite(bg)) throw Error(label, "has a NaN or infinite background value");
+        mAll.add(bg);
+        for (auto it2 = root.cbeginChildOn(); it2; ++it2) {
+            const Node2T& n2 = *it2;
+            MinMax mm2;
+            for (openvdb::Index i2 = 0; i2 < Node2T::NUM_VALUES; ++i2) {
+                if (n2.isChildMaskOn(i2)) {
+                    const Node1T& n1 = *n2.getTable()[i2].getChild();
+                    MinMax mm1;
+                    for (openvdb::Index i1 = 0; i1 < Node1T::NUM_VALUES; ++i1) {
+                        if (n1.isChildMaskOn(i1)) mm1.add(mCache.at(n1.getTable()[i1].getChild()));
+                        else {
+                            const double v = double(n1.getTable()[i1].getValue());
+                            tile(v, n1.offsetToGlobalCoord(i1));
+                            mm1.add(v);
+                        }
+                    }
+                    mCache.emplace(&n1, mm1);
+                    mm2.add(mm1);
+                } else {
+                    const double v = double(n2.getTable()[i2].getValue());
+                    tile(v, n2.offsetToGlobalCoord(i2));
+                    mm2.add(v);
+                }
+            }
+            mCache.emplace(&n2, mm2);
+            mAll.add(mm2);
+        }
+        for (auto it = root.cbeginValueAll(); it; ++it) {
+            tile(double(*it), it.getCoord());
+            mAll.add(double(*it));
+        }
+    }
+
+    void computeDomain(const std::string& label) {
+        CoordBBox ib;
+        mTree.evalLeafBoundingBox(ib);
+        const double bg = double(mTree.background());
+        typename TreeT::ValueAllCIter it = mTree.cbeginValueAll();
+        it.setMaxDepth(TreeT::ValueAllCIter::LEAF_DEPTH - 1); // tiles only
+        for (; it; ++it) {
+            if (double(*it) == bg) continue;
+            CoordBBox tb;
+            it.getBoundingBox(tb);
+            ib.expand(tb);
+        }
+        if (ib.empty() || (mGrid->activeVoxelCount() == 0 && mAll.lo == mAll.hi))
+            throw Error(label, "is empty (no active voxels or tiles)");
+        ib.expand(1); // the trilinear support reaches one voxel beyond the stored data
+        mIndexDomain = ib;
+        const openvdb::BBoxd wb = mGrid->transform().indexToWorld(CoordBBox(ib.min(), ib.max()));
+        mDomain = {toVec(wb.min()), toVec(wb.max())};
+    }
+
+    // Min/max of every value in the index box, from cached node summaries where a node lies
+    // wholly inside the box.
+    void query(const CoordBBox& box, MinMax& mm) const {
+        if (!box.hasOverlap(mIndexDomain)) { mm.add(double(mTree.background())); return; }
+        const RootT& root = mTree.root();
+        constexpr int D = int(Node2T::DIM);
+        const Coord lo = box.min() & ~(D - 1), hi = box.max() & ~(D - 1);
+        const std::int64_t count = std::int64_t((hi.x() - lo.x()) / D + 1) * ((hi.y() - lo.y()) / D + 1) * ((hi.z() - lo.z()) / D + 1);
+        if (count > 512) { mm.add(mAll); return; }
+        for (int x = lo.x(); x <= hi.x(); x += D)
+            for (int y = lo.y(); y <= hi.y(); y += D)
+                for (int z = lo.z(); z <= hi.z(); z += D) {
+                    const Coord c(x, y, z);
+                    if (const Node2T* n2 = root.template probeConstNode<Node2T>(c)) queryInternal(*n2, box, mm);
+                    else mm.add(double(root.getValue(c)));
+                }
+    }
+
+    template <typename NodeT>
+    void queryInternal(const NodeT& node, const CoordBBox& box, MinMax& mm) const {
+        const CoordBBox nb = node.getNodeBoundingBox();
+        if (contains(box, nb)) { mm.add(mCache.at(&node)); return; }
+        CoordBBox in = nb;
+        in.intersect(box);
+        using ChildT = typename NodeT::ChildNodeType;
+        constexpr int CD = int(ChildT::DIM);
+        const Coord lo = in.min() & ~(CD - 1), hi = in.max() & ~(CD - 1);
+        for (int x = lo.x(); x <= hi.x(); x += CD)
+            for (int y = lo.y(); y <= hi.y(); y += CD)
+                for (int z = lo.z(); z <= hi.z(); z += CD) {
+                    const openvdb::Index n = NodeT::coordToOffset(Coord(x, y, z));
+                    if (!node.isChildMaskOn(n)) { mm.add(double(node.getTable()[n].getValue())); continue; }
+                    const ChildT& child = *node.getTable()[n].getChild();
+                    if constexpr (std::is_same<ChildT, LeafT>::value) queryLeaf(child, box, mm);
+                    else queryInternal(child, box, mm);
+                }
+    }
+
+    void queryLeaf(const LeafT& leaf, const CoordBBox& box, MinMax& mm) const {
+        const CoordBBox nb = leaf.getNodeBoundingBox();
+        if (contains(box, nb)) { mm.add(mCache.at(&leaf)); return; }
+        CoordBBox in = nb;
+        in.intersect(box);
+        const auto* data = leaf.buffer().data();
+        for (int x = in.min().x(); x <= in.max().x(); ++x)
+            for (int y = in.min().y(); y <= in.max().y(); ++y)
+                for (int z = in.min().z(); z <= in.max().z(); ++z) mm.add(double(data[LeafT::coordToOffset(Coord(x, y, z))]));
+    }
+
+    typename GridT::ConstPtr mGrid;
+    const TreeT& mTree;
+    bool mAxisAligned = false;
+    double mVoxel = 1.0;
+    Vec3d mOrigin;
+    MinMax mAll;
+    std::unordered_map<const void*, MinMax> mCache;
+    CoordBBox mIndexDomain;
+    Box3 mDomain;
+};
+
+} // namespace
+
+GridField::GridField(GridBaseCPtr grid, std::string label, std::optional<Inside> inside) : mLabel(std::move(label)) {
+    if (!grid) throw Error(mLabel, "no grid");
+    double background = 0;
+    if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) {
+        mImpl = std::make_unique<TypedGrid<openvdb::FloatGrid>>(f, mLabel);
+        background = double(f->background());
+    } else if (auto d = openvdb::GridBase::constGrid<openvdb::DoubleGrid>(grid)) {
+        mImpl = std::make_unique<TypedGrid<openvdb::DoubleGrid>>(d, mLabel);
+        background = d->background();
+    } else {
+        throw Error(mLabel, "holds " + grid->valueType() + " values; vdbsurf meshes float or double grids");
+    }
+    switch (grid->getGridClass()) {
+    case openvdb::GRID_LEVEL_SET:
+        mClass = "level set";
+        mInside = Inside::Below;
+        mInsideReason = "level set: inside is below the iso value";
+        break;
+    case openvdb::GRID_FOG_VOLUME:
+        mClass = "fog";
+        mInside = Inside::Above;
+        mInsideReason = "fog volume: inside is above the iso value";
+        break;
+    default:
+        mClass = "unknown";
+        mInside = background > 0 ? Inside::Below : Inside::Above;
+        mInsideReason = background > 0 ? "class unknown, background > 0: treated as a signed distance (inside below iso)"
+                                        : "class unknown, background <= 0: treated as a density (inside above iso)";
+    }
+    if (inside) {
+        mInside = *inside;
+        mInsideReason = *inside == Inside::Below ? "inside below the iso value (--inside below)" : "inside above the iso value (--inside above)";
+    }
+}
+
+GridField::~GridField() = default;
+
+double GridField::value(const Vec3d& p) const { return mImpl->value(p); }
+Vec3d GridField::gradient(const Vec3d& p) const { return mImpl->gradient(p); }
+Interval GridField::bounds(const Box3& box) const { return mImpl->bounds(box); }
+Box3 GridField::domain() const { return mImpl->domain(); }
+std::optional<double> GridField::naturalSpacing() const { return mImpl->voxelSize(); }
+LatticeFrame GridField::naturalFrame(double h) const { return mImpl->naturalFrame(h); }
+Interval GridField::valueRange() const { return mImpl->valueRange(); }
+GridBaseCPtr GridField::grid() const { return mImpl->grid(); }
+
+void GridField::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
+                            double* out) const {
+    mImpl->sampleNodes(frame, first, dims, needed, out);
+}
+
+bool GridField::cellBoundsAreCornerRange(const LatticeFrame& frame) const { return mImpl->cellsInsideVoxelCells(frame); }
+
+bool GridField::edgesAreLinear(const LatticeFrame& frame) const {
+    int stride = 0;
+    Coord offset;
+    return mImpl->directStride(frame, stride, offset) && stride == 1;
+}
+
+double GridField::edgeCrossing(const Vec3d& a, const Vec3d& b, double va, double vb, double iso) const {
+    double t = 0;
+    if (mImpl->piecewiseLinearCrossing(a, b, iso, mInside, t)) return t;
+    return refineCrossing(*this, a, b, va, vb, iso);
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,211 @@
+#include "vdbsurf/lattice/lattice.h"
+
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/core/progress.h"
+
+#include <tbb/parallel_for.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+namespace vdbsurf {
+
+using openvdb::Coord;
+using openvdb::CoordBBox;
+
+namespace {
+
+using MaskLeaf = openvdb::MaskTree::LeafNodeType;
+
+constexpr int kLeafDim = 8;
+constexpr int kBlockNodes = kLeafDim + 1;
+constexpr int kBlockNodeCount = kBlockNodes * kBlockNodes * kBlockNodes;
+// Largest lattice extent along one axis: beyond this a user has almost surely mistyped the
+// voxel size (a million cells along an axis is ~10^12 cells in the bounding box).
+constexpr double kMaxCellsPerAxis = double(1 << 20);
+
+// Guard against lattices that cannot fit in memory (each 8^3 block costs ~1 KiB when meshed).
+constexpr std::size_t kMaxLeafBlocks = std::size_t(1) << 24;
+
+Vec3i toVec(const Coord& c) { return {c.x(), c.y(), c.z()}; }
+
+Box3 cellsBox(const LatticeFrame& frame, const CoordBBox& cells) {
+    return frame.nodeBox(toVec(cells.min()), toVec(cells.max()) + Vec3i(1, 1, 1));
+}
+
+std::string pointText(const Vec3d& p) {
+    std::ostringstream s;
+    s.precision(9);
+    s << "(" << p.x << ", " << p.y << ", " << p.z << ")";
+    return s.str();
+}
+
+[[noreturn]] void tooFine(const Field& field, const LatticeFrame& frame, std::size_t blocks, int size) {
+    std::ostringstream s;
+    s << frame.h << " would make the lattice around " << field.describe() << " too fine (more than " << blocks
+      << " blocks of " << size << "^3 cells may hold surface, at most " << kMaxLeafBlocks << "); use a larger voxel size";
+    throw Error("--voxel-size", s.str());
+}
+
+// The children of size `child` of each block of size `size` (clipped to the range) whose
+// bounds straddle iso; parents are processed in parallel, children stay in parent order.
+std::vector<Coord> straddlingChildren(const Field& field, const LatticeFrame& frame, const std::vector<Coord>& parents,
+                                      int size, int child, const CoordBBox& range, double iso, const CancelToken* cancel,
+                                      std::uint64_t& tested) {
+    std::vector<std::vector<Coord>> kept(parents.size());
+    std::atomic<std::uint64_t> count{0}, survivors{0};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parents.size()), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+            if (cancel && cancel->cancelled()) return;
+            if (survivors.load(std::memory_order_relaxed) > kMaxLeafBlocks) return;
+            CoordBBox box(parents[i], parents[i].offsetBy(size - 1));
+            box.intersect(range);
+            const Coord lo = box.min() & ~(child - 1), hi = box.max() & ~(child - 1);
+            std::uint64_t n = 0;
+            for (int x = lo.x(); x <= hi.x(); x += child)
+                for (int y = lo.y(); y <= hi.y(); y += child)
+                    for (int z = lo.z(); z <= hi.z(); z += child) {
+                        ++n;
+                        CoordBBox cb(Coord(x, y, z), Coord(x, y, z).offsetBy(child - 1));
+                        cb.intersect(range);
+                        if (straddles(field.bounds(cellsBox(frame, cb)), iso)) kept[i].emplace_back(x, y, z);
+                    }
+            count += n;
+            survivors += kept[i].size();
+        }
+    });
+    if (cancel) cancel->check();
+    if (survivors > kMaxLeafBlocks) tooFine(field, frame, survivors, child);
+    // A surface through a block of side n leaf blocks meets about n^2 of them: stop here rather
+    // than test millions of blocks to learn that the lattice cannot fit.
+    const double perBlock = double(child / kLeafDim) * double(child / kLeafDim);
+    if (double(survivors) * perBlock > 8.0 * double(kMaxLeafBlocks)) {
+        std::ostringstream s;
+        s << frame.h << " would make the lattice around " << field.describe() << " too fine (about "
+          << double(survivors) * perBlock << " blocks of 8^3 cells would hold surface, at most " << kMaxLeafBlocks
+          << "); use a larger voxel size";
+        throw Error("--voxel-size", s.str());
+    }
+    tested += count;
+    std::vector<Coord> out;
+    out.reserve(survivors);
+    for (auto& k : kept) out.insert(out.end(), k.begin(), k.end());
+    return out;
+}
+
+} // namespace
+
+CoordBBox latticeCellRange(const Field& field, const LatticeFrame& frame) {
+    if (!(frame.h > 0) || !std::isfinite(frame.h))
+        throw Error("--voxel-size", "must be a positive number of world units, not " + std::to_string(frame.h));
+    const Box3 d = field.domain();
+    Coord lo, hi;
+    for (int a = 0; a < 3; ++a) {
+        const double n0 = std::floor((d.min[a] - frame.origin[a]) / frame.h);
+        const double n1 = std::ceil((d.max[a] - frame.origin[a]) / frame.h);
+        const double cells = std::max(1.0, n1 - n0);
+        if (!std::isfinite(cells) || cells > kMaxCellsPerAxis) {
+            std::ostringstream s;
+            s << frame.h << " gives " << cells << " cells along " << "xyz"[a] << " over " << field.describe()
+              << " (extent " << d.max[a] - d.min[a] << "); at most " << kMaxCellsPerAxis << " are allowed";
+            throw Error("--voxel-size", s.str());
+        }
+        if (std::fabs(n0) > 1e9 || std::fabs(n1) > 1e9) throw Error("--voxel-size", "the lattice lies too far from the origin");
+        lo[a] = int(n0);
+        hi[a] = int(std::max(n0 + 1, n1)) - 1;
+    }
+    return CoordBBox(lo, hi);
+}
+
+Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordBBox& cellRange, double iso,
+                     const CancelToken* cancel) {
+    const auto start = std::chrono::steady_clock::now();
+    Lattice lat;
+    lat.frame = frame;
+    lat.cellRange = cellRange;
+    lat.cells = std::make_shared<openvdb::MaskTree>(false);
+    LatticeStats& st = lat.stats;
+
+    // Top-down over VDB node sizes: 4096^3, 128^3, then 8^3 leaf blocks. The root has no bounds
+    // of its own: its 4096^3 children are tested as children of one virtual parent per block.
+    constexpr int kL2 = 4096, kL1 = 128;
+    std::vector<Coord> roots;
+    {
+        const Coord lo = cellRange.min() & ~(kL2 - 1), hi = cellRange.max() & ~(kL2 - 1);
+        for (int x = lo.x(); x <= hi.x(); x += kL2)
+            for (int y = lo.y(); y <= hi.y(); y += kL2)
+                for (int z = lo.z(); z <= hi.z(); z += kL2) roots.emplace_back(x, y, z);
+    }
+    std::vector<Coord> blocks = straddlingChildren(field, frame, roots, kL2, kL2, cellRange, iso, cancel, st.upperNodesTested);
+    blocks = straddlingChildren(field, frame, blocks, kL2, kL1, cellRange, iso, cancel, st.upperNodesTested);
+    blocks = straddlingChildren(field, frame, blocks, kL1, kLeafDim, cellRange, iso, cancel, st.leafBlocksTested);
+    st.leafBlocksVisited = blocks.size();
+
+    const bool cornersExact = field.cellBoundsAreCornerRange(frame);
+    const Inside side = field.inside();
+    std::vector<std::unique_ptr<MaskLeaf>> leaves(blocks.size());
+    std::vector<std::int64_t> nanAt(blocks.size(), -1);
+    std::vector<std::uint32_t> examined(blocks.size(), 0);
+    Progress progress("lattice", blocks.size(), cancel);
+
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::array<double, kBlockNodeCount> vals;
+        for (std::size_t bi = r.begin(); bi < r.end(); ++bi) {
+            const Coord o = blocks[bi];
+            CoordBBox box(o, o.offsetBy(kLeafDim - 1));
+            box.intersect(cellRange);
+            field.sampleNodes(frame, toVec(o), {kBlockNodes, kBlockNodes, kBlockNodes}, nullptr, vals.data());
+            auto leaf = std::make_unique<MaskLeaf>(o, false);
+            std::uint32_t count = 0;
+            for (int x = box.min().x(); x <= box.max().x(); ++x)
+                for (int y = box.min().y(); y <= box.max().y(); ++y)
+                    for (int z = box.min().z(); z <= box.max().z(); ++z) {
+                        const int lx = x - o.x(), ly = y - o.y(), lz = z - o.z();
+                        ++count;
+                        double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+                        bool in0 = false, change = false;
+                        for (int c = 0; c < 8; ++c) {
+                            const int n = (lx + (c & 1)) + kBlockNodes * (ly + ((c >> 1) & 1)) +
+                                          kBlockNodes * kBlockNodes * (lz + ((c >> 2) & 1));
+                            const double v = vals[std::size_t(n)];
+                            if (std::isnan(v)) { if (nanAt[bi] < 0) nanAt[bi] = n; continue; }
+                            lo = std::min(lo, v);
+                            hi = std::max(hi, v);
+                            const bool in = isInside(v, iso, side);
+                            if (c == 0) in0 = in;
+                            else if (in != in0) change = true;
+                        }
+                        bool active = change;
+                        if (!active) {
+                            active = cornersExact ? (lo <= iso && iso <= hi)
+                                                  : straddles(field.bounds(frame.cellBox({x, y, z})), iso);
+                        }
+                        if (active) leaf->setValueOn(Coord(x, y, z));
+                    }
+            examined[bi] = count;
+            if (!leaf->isEmpty()) leaves[bi] = std::move(leaf);
+            progress.advance();
+        }
+    });
+
+    for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+        if (nanAt[bi] < 0) continue;
+        const int n = int(nanAt[bi]);
+        const Vec3i node = toVec(blocks[bi]) + Vec3i(n % kBlockNodes, (n / kBlockNodes) % kBlockNodes, n / (kBlockNodes * kBlockNodes));
+        throw Error(field.describe(), "is undefined (NaN) at " + pointText(frame.nodeWorld(node)));
+    }
+    for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
+        st.cellsExamined += examined[bi];
+        if (!leaves[bi]) continue;
+        st.cellsActive += leaves[bi]->onVoxelCount();
+        lat.cells->addLeaf(leaves[bi].release());
+    }
+    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return lat;
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,44 @@
+// Lattice: the cells of a uniform lattice of spacing h that may hold surface, as the active
+// voxels of an OpenVDB mask tree in lattice index space (voxel (i,j,k) = cell (i,j,k)). Found
+// top-down from the field's conservative bounds, one VDB node at a time: a node (4096^3, 128^3 or
+// 8^3 cells) whose bounds do not straddle the iso value is skipped whole, so work grows with
+// the surface, never with the bounding box.
+#pragma once
+#include "vdbsurf/core/lattice_frame.h"
+#include "vdbsurf/field/field.h"
+
+#include <openvdb/openvdb.h>
+
+#include <cstdint>
+
+namespace vdbsurf {
+
+class CancelToken;
+
+struct LatticeStats {
+    std::uint64_t upperNodesTested = 0; // 4096^3 and 128^3 blocks whose bounds were asked
+    std::uint64_t leafBlocksTested = 0; // 8^3 blocks whose bounds were asked
+    std::uint64_t leafBlocksVisited = 0; // 8^3 blocks whose cells were examined one by one
+    std::uint64_t cellsExamined = 0;
+    std::uint64_t cellsActive = 0;
+    double seconds = 0;
+};
+
+struct Lattice {
+    LatticeFrame frame;
+    openvdb::CoordBBox cellRange;   // cells considered (from the field's domain)
+    openvdb::MaskTree::Ptr cells;   // active voxel = cell that may hold surface
+    LatticeStats stats;
+};
+
+// The cells covering the field's domain on this frame. Throws Error naming "--voxel-size" when
+// h is not a positive finite number or gives an absurd lattice.
+openvdb::CoordBBox latticeCellRange(const Field& field, const LatticeFrame& frame);
+
+// Active cells: those whose bounds straddle iso, plus those whose corner values change side (so
+// that every edge with a sign change has its owning cell active, whatever the rounding of the
+// bounds). Throws Error naming the field where a node value is NaN.
+Lattice buildLattice(const Field& field, const LatticeFrame& frame, const openvdb::CoordBBox& cellRange, double iso,
+                     const CancelToken* cancel = nullptr);
+
+} // namespace vdbsurf

@@ -1,0 +1,36 @@
+// Mesh: positions plus polygons (triangles, quads, n-gons) in one compact index list. The
+// common currency between the mesher, the writers, subdivision and surface fitting.
+#pragma once
+#include "vdbsurf/core/vec3.h"
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+namespace vdbsurf {
+
+struct Mesh {
+    std::vector<Vec3f> points;
+    // Polygon p uses indices[offsets[p] .. offsets[p + 1]); offsets always starts with 0.
+    std::vector<std::uint32_t> offsets{0};
+    std::vector<std::uint32_t> indices;
+
+    std::size_t polygonCount() const { return offsets.size() - 1; }
+    std::uint32_t polygonSize(std::size_t p) const { return offsets[p + 1] - offsets[p]; }
+    const std::uint32_t* polygon(std::size_t p) const { return indices.data() + offsets[p]; }
+    void addPolygon(std::initializer_list<std::uint32_t> vs);
+    void addPolygon(const std::uint32_t* vs, std::size_t n);
+    std::size_t countPolygonsOfSize(std::uint32_t n) const;
+    bool empty() const { return polygonCount() == 0; }
+    Box3 bounds() const;
+};
+
+// Surface area and enclosed volume (divergence theorem; positive when oriented outwards).
+// Polygons are fanned from their first vertex.
+double surfaceArea(const Mesh& mesh);
+double enclosedVolume(const Mesh& mesh);
+
+// Triangles and quads only: n-gons (n > 4) fanned into triangles, as OpenVDB's tools expect.
+void splitToTrianglesAndQuads(const Mesh& mesh, std::vector<std::uint32_t>& triangles, std::vector<std::uint32_t>& quads);
+
+} // namespace vdbsurf

@@ -1,0 +1,44 @@
+// Reading .vdb files the way a pipeline user expects: every failure (missing, not a VDB,
+// truncated, no such grid, wrong value type) becomes one Error naming the file, and grids are
+// read fully (no delayed loading), so a damaged file fails here rather than later.
+#pragma once
+#include "vdbsurf/core/vec3.h"
+#include "vdbsurf/vdb/openvdb_fwd.h"
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace vdbsurf {
+
+struct GridSummary {
+    std::string name;
+    std::string valueType;  // OpenVDB's name: float, double, vec3s, ...
+    std::string gridClass;  // "level set", "fog", "staggered", "unknown"
+    Vec3d voxelSize;
+    std::uint64_t activeVoxels = 0;
+    bool empty = true;      // no active voxels
+    Box3 worldBounds;       // of the active voxels; meaningless when empty
+    bool scalar = false;    // float or double: meshable
+};
+
+void initializeOpenVdb();
+
+// Grid summaries from the file's metadata (reading a grid only where its writer left no voxel
+// count); verify: read every grid in full, so damaged data is reported.
+std::vector<GridSummary> summarizeVdbFile(const std::string& path, bool verify = false);
+
+struct LoadedGrid {
+    GridBasePtr grid;
+    std::string name;
+    std::string note; // which grid was picked and why
+};
+
+// Reads the grid to mesh: by name, or the first float/double grid when name is empty. Throws
+// Error naming the file.
+LoadedGrid readScalarGrid(const std::string& path, const std::string& name);
+
+// Writes grids to path atomically (temporary file + rename), with file-level metadata.
+void writeVdbFile(const std::string& path, const std::vector<GridBasePtr>& grids);
+
+} // namespace vdbsurf

@@ -1,0 +1,131 @@
+#include "support/test_support.h"
+
+#include "vdbsurf/vdb/vdb_file.h"
+
+#include <openvdb/openvdb.h>
+#include <openvdb/tools/LevelSetSphere.h>
+#include <openvdb/tools/SignedFloodFill.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <sys/wait.h>
+#include <unistd.h>
+
+namespace fs = std::filesystem;
+
+namespace vdbsurf::test {
+
+GridBasePtr makeSphereLevelSet(double radius, const Vec3d& center, double voxelSize) {
+    initializeOpenVdb();
+    auto g = openvdb::tools::createLevelSetSphere<openvdb::FloatGrid>(float(radius), openvdb::Vec3f(float(center.x), float(center.y), float(center.z)),
+                                                                      float(voxelSize), 3.0f);
+    g->setName("sphere");
+    return g;
+}
+
+GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double voxelSize) {
+    initializeOpenVdb();
+    const float band = float(3.0 * voxelSize);
+    auto g = openvdb::FloatGrid::create(band);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(voxelSize));
+    g->setGridClass(openvdb::GRID_LEVEL_SET);
+    g->setName("torus");
+    auto acc = g->getAccessor();
+    const int nx = int(std::ceil((R + r) / voxelSize)) + 4, nz = int(std::ceil(r / voxelSize)) + 4;
+    const openvdb::Coord c0 = openvdb::Coord::round(openvdb::Vec3d(center.x, center.y, center.z) / voxelSize);
+    for (int i = -nx; i <= nx; ++i)
+        for (int j = -nx; j <= nx; ++j)
+            for (int k = -nz; k <= nz; ++k) {
+                const openvdb::Coord ijk = c0.offsetBy(i, j, k);
+                const openvdb::Vec3d p = g->indexToWorld(ijk) - openvdb::Vec3d(center.x, center.y, center.z);
+                const double q = std::sqrt(p.x() * p.x() + p.y() * p.y()) - R;
+                const float d = float(std::sqrt(q * q + p.z() * p.z()) - r);
+                if (std::fabs(d) < band) acc.setValue(ijk, d);
+            }
+    openvdb::tools::signedFloodFill(g->tree());
+    return g;
+}
+
+GridBasePtr makeSphereFog(double radius, double ramp, double voxelSize) {
+    initializeOpenVdb();
+    auto g = openvdb::FloatGrid::create(0.0f);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(voxelSize));
+    g->setGridClass(openvdb::GRID_FOG_VOLUME);
+    g->setName("density");
+    auto acc = g->getAccessor();
+    const int n = int(std::ceil((radius + ramp) / voxelSize)) + 2;
+    for (int i = -n; i <= n; ++i)
+        for (int j = -n; j <= n; ++j)
+            for (int k = -n; k <= n; ++k) {
+                const double d = voxelSize * std::sqrt(double(i * i + j * j + k * k)) - radius;
+                const double t = std::clamp(d / ramp, 0.0, 1.0);
+                const float v = float(1.0 - t * t * (3 - 2 * t)); // smoothstep down
+                if (v > 0) acc.setValue(openvdb::Coord(i, j, k), v);
+            }
+    return g;
+}
+
+TempDir::TempDir() {
+    std::string tmpl = (fs::temp_directory_path() / "vdbsurf-test-XXXXXX").string();
+    std::vector<char> buf(tmpl.begin(), tmpl.end());
+    buf.push_back('\0');
+    if (!::mkdtemp(buf.data())) throw std::runtime_error("mkdtemp failed");
+    mPath = buf.data();
+}
+
+TempDir::~TempDir() {
+    std::error_code ec;
+    fs::remove_all(mPath, ec);
+}
+
+std::vector<std::string> TempDir::files() const {
+    std::vector<std::string> out;
+    for (const auto& e : fs::directory_iterator(mPath)) out.push_back(e.path().filename().string());
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+namespace {
+std::string shellQuote(const std::string& s) {
+    std::string q = "'";
+    for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return q + "'";
+}
+} // namespace
+
+RunResult runVdbsurf(const std::vector<std::string>& args) {
+    std::string cmd = shellQuote(VDBSURF_BIN);
+    for (const auto& a : args) cmd += " " + shellQuote(a);
+    cmd += " 2>&1";
+    RunResult r;
+    FILE* pipe = ::popen(cmd.c_str(), "r");
+    if (!pipe) return r;
+    std::array<char, 4096> buf;
+    std::size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), pipe)) > 0) r.output.append(buf.data(), n);
+    const int status = ::pclose(pipe);
+    r.exitCode = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    return r;
+}
+
+std::string readFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream s;
+    s << in.rdbuf();
+    return s.str();
+}
+
+bool fileExists(const std::string& path) { return fs::exists(path); }
+
+std::string sharedData(const std::string& relative) {
+    const fs::path p = fs::path(VDBSURF_SHARED_DATA) / relative;
+    return fs::exists(p) ? p.string() : std::string();
+}
+
+void writeGrids(const std::string& path, const std::vector<GridBasePtr>& grids) { writeVdbFile(path, grids); }
+
+} // namespace vdbsurf::test

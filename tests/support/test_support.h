@@ -1,0 +1,47 @@
+// Helpers shared by the tests: closed-form level sets, temporary folders, running the CLI,
+// and the shared real-data folder (tests skip with a message when it is absent).
+#pragma once
+#include "vdbsurf/mesh/mesh.h"
+#include "vdbsurf/vdb/openvdb_fwd.h"
+
+#include <string>
+#include <vector>
+
+namespace vdbsurf::test {
+
+// Narrow-band level sets (half width 3 voxels), inside negative, made through OpenVDB.
+GridBasePtr makeSphereLevelSet(double radius, const Vec3d& center, double voxelSize);
+// Torus around the z axis (major radius R, minor radius r), from its exact signed distance.
+GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double voxelSize);
+// Fog volume: 1 inside the sphere, smooth ramp to 0 over `ramp` world units outside.
+GridBasePtr makeSphereFog(double radius, double ramp, double voxelSize);
+
+// A fresh empty folder under the system temp folder, removed when the object dies.
+class TempDir {
+public:
+    TempDir();
+    ~TempDir();
+    std::string path(const std::string& name) const { return mPath + "/" + name; }
+    const std::string& root() const { return mPath; }
+    std::vector<std::string> files() const; // names in the folder
+
+private:
+    std::string mPath;
+};
+
+struct RunResult {
+    int exitCode = -1;
+    std::string output; // stdout and stderr together
+};
+// Runs build/bin/vdbsurf with the arguments (shell-quoted here).
+RunResult runVdbsurf(const std::vector<std::string>& args);
+
+std::string readFile(const std::string& path);
+bool fileExists(const std::string& path);
+
+// ../shared/data/<relative>, or "" when the shared folder is absent.
+std::string sharedData(const std::string& relative);
+
+void writeGrids(const std::string& path, const std::vector<GridBasePtr>& grids);
+
+} // namespace vdbsurf::test

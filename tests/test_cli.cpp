@@ -1,0 +1,177 @@
+// The command line as a user meets it: info, mesh, and one clear error per kind of bad input,
+// with a non-zero exit and no output file left behind.
+#include "support/test_support.h"
+
+#include "vdbsurf/vdb/vdb_file.h"
+
+#include <catch2/catch.hpp>
+#include <nlohmann/json.hpp>
+#include <openvdb/openvdb.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+using namespace vdbsurf;
+using test::runVdbsurf;
+
+namespace {
+
+void writeSphereFile(const std::string& path, double voxel = 0.05) {
+    auto g = test::makeSphereLevelSet(1.0, {0, 0, 0}, voxel);
+    g->setName("ls_sphere");
+    test::writeGrids(path, {g});
+}
+
+// A failed run: non-zero exit, the message names `input` and says `what`, nothing written.
+void expectFailure(const test::TempDir& dir, const std::vector<std::string>& args, const std::string& input,
+                   const std::string& what, const std::vector<std::string>& filesBefore) {
+    const auto r = runVdbsurf(args);
+    INFO(r.output);
+    CHECK(r.exitCode != 0);
+    CHECK(r.exitCode != 70); // not an internal error
+    CHECK(r.output.find(input) != std::string::npos);
+    CHECK(r.output.find(what) != std::string::npos);
+    CHECK(r.output.find("error") != std::string::npos);
+    CHECK(dir.files() == filesBefore);
+}
+
+} // namespace
+
+TEST_CASE("info lists each grid with type, class, voxel size, count and bounds") {
+    test::TempDir dir;
+    initializeOpenVdb();
+    auto ls = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.1);
+    ls->setName("ls");
+    auto fog = test::makeSphereFog(0.5, 0.2, 0.1);
+    auto vec = openvdb::Vec3SGrid::create();
+    vec->setName("vel");
+    vec->tree().setValue({0, 0, 0}, openvdb::Vec3s(1, 0, 0));
+    test::writeGrids(dir.path("multi.vdb"), {ls, fog, vec});
+    const auto r = runVdbsurf({"info", dir.path("multi.vdb")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("3 grids") != std::string::npos);
+    CHECK(r.output.find("level set") != std::string::npos);
+    CHECK(r.output.find("fog") != std::string::npos);
+    CHECK(r.output.find("vec3s") != std::string::npos);
+    CHECK(r.output.find("0.1") != std::string::npos);
+    CHECK(r.output.find(std::to_string(ls->activeVoxelCount())) != std::string::npos);
+    const auto j = runVdbsurf({"-q", "info", "--json", dir.path("multi.vdb")});
+    REQUIRE(j.exitCode == 0);
+    const auto doc = nlohmann::json::parse(j.output);
+    REQUIRE(doc["grids"].size() == 3);
+    std::map<std::string, nlohmann::json> byName;
+    for (const auto& g : doc["grids"]) byName[g["name"].get<std::string>()] = g;
+    REQUIRE(byName.count("ls") == 1);
+    CHECK(byName["ls"]["class"] == "level set");
+    CHECK(byName["ls"]["active_voxels"] == ls->activeVoxelCount());
+    // Narrow band of 3 voxels around r = 1, plus half a voxel: the voxels' extent.
+    CHECK(byName["ls"]["world_bbox"][1][0].get<double>() == Approx(1.0 + 3 * 0.1 + 0.05).margin(0.11));
+    CHECK(byName["density"]["class"] == "fog");
+    CHECK(byName["vel"]["meshable"] == false);
+    CHECK(byName["vel"]["type"] == "vec3s");
+}
+
+TEST_CASE("mesh writes OBJ, PLY and VDB, says what it chose, and writes stats") {
+    test::TempDir dir;
+    writeSphereFile(dir.path("s.vdb"));
+    const auto r = runVdbsurf({"mesh", dir.path("s.vdb"), "-o", dir.path("s.obj"), "--stats", dir.path("s.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("using grid 'ls_sphere'") != std::string::npos);
+    CHECK(r.output.find("iso 0 (default for level sets") != std::string::npos);
+    const auto stats = nlohmann::json::parse(test::readFile(dir.path("s.json")));
+    for (const char* key : {"vertices", "triangles", "quads", "threads", "seconds", "lattice"}) CHECK(stats.contains(key));
+    CHECK(stats["lattice"]["cells_visited"].get<long>() > 0);
+    CHECK(stats["seconds"].contains("lattice"));
+    CHECK(stats["seconds"].contains("mesh"));
+    CHECK(stats["vertices"].get<long>() > 1000);
+
+    REQUIRE(runVdbsurf({"-q", "mesh", dir.path("s.vdb"), "-o", dir.path("s.ply")}).exitCode == 0);
+    CHECK(test::readFile(dir.path("s.ply")).rfind("ply\n", 0) == 0);
+    REQUIRE(runVdbsurf({"-q", "mesh", dir.path("s.vdb"), "-o", dir.path("back.vdb"), "--voxel-size", "0.08"}).exitCode == 0);
+    const auto info = runVdbsurf({"-q", "info", "--json", dir.path("back.vdb")});
+    REQUIRE(info.exitCode == 0);
+    const auto doc = nlohmann::json::parse(info.output);
+    CHECK(doc["grids"][0]["class"] == "level set");
+    CHECK(doc["grids"][0]["voxel_size"][0].get<double>() == Approx(0.08));
+
+    const auto e = runVdbsurf({"mesh", "--expr", "x^2+y^2+z^2-1", "--bbox", "-2,-2,-2,2,2,2", "--voxel-size", "0.1", "-o",
+                               dir.path("e.obj")});
+    INFO(e.output);
+    CHECK(e.exitCode == 0);
+    CHECK(test::fileExists(dir.path("e.obj")));
+}
+
+TEST_CASE("the same input at 1 and 2 threads gives byte-identical files") {
+    test::TempDir dir;
+    writeSphereFile(dir.path("s.vdb"), 0.03);
+    REQUIRE(runVdbsurf({"-q", "mesh", dir.path("s.vdb"), "-o", dir.path("a.obj"), "--threads", "1"}).exitCode == 0);
+    REQUIRE(runVdbsurf({"-q", "mesh", dir.path("s.vdb"), "-o", dir.path("b.obj"), "--threads", "2"}).exitCode == 0);
+    const std::string a = test::readFile(dir.path("a.obj")), b = test::readFile(dir.path("b.obj"));
+    CHECK(a.size() > 100000);
+    CHECK(a == b);
+}
+
+TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output") {
+    test::TempDir dir;
+    writeSphereFile(dir.path("good.vdb"));
+    const std::string out = dir.path("out.obj");
+
+    // Files the user might hand over by mistake.
+    std::ofstream(dir.path("text.vdb")) << "this is not a volume\n";
+    {
+        const std::string full = test::readFile(dir.path("good.vdb"));
+        std::ofstream(dir.path("truncated.vdb"), std::ios::binary) << full.substr(0, full.size() / 2);
+        std::ofstream(dir.path("header_only.vdb"), std::ios::binary) << full.substr(0, 200);
+    }
+    initializeOpenVdb();
+    {
+        auto nan = openvdb::FloatGrid::create(0.f);
+        nan->setName("density");
+        nan->setGridClass(openvdb::GRID_FOG_VOLUME);
+        nan->tree().setValue({1, 2, 3}, 0.7f);
+        nan->tree().setValue({2, 2, 3}, std::numeric_limits<float>::quiet_NaN());
+        test::writeGrids(dir.path("nan.vdb"), {nan});
+        auto inf = openvdb::FloatGrid::create(0.f);
+        inf->setName("density");
+        inf->tree().setValue({1, 2, 3}, std::numeric_limits<float>::infinity());
+        test::writeGrids(dir.path("inf.vdb"), {inf});
+        auto empty = openvdb::FloatGrid::create(0.f);
+        empty->setName("nothing");
+        test::writeGrids(dir.path("empty.vdb"), {empty});
+        auto vec = openvdb::Vec3SGrid::create();
+        vec->setName("velocity");
+        vec->tree().setValue({0, 0, 0}, openvdb::Vec3s(1, 0, 0));
+        test::writeGrids(dir.path("vector.vdb"), {vec});
+    }
+    const auto before = dir.files();
+
+    expectFailure(dir, {"mesh", dir.path("missing.vdb"), "-o", out}, "missing.vdb", "no such file", before);
+    expectFailure(dir, {"mesh", dir.path("text.vdb"), "-o", out}, "text.vdb", "not an OpenVDB file", before);
+    expectFailure(dir, {"mesh", dir.path("truncated.vdb"), "-o", out}, "truncated.vdb", "truncated", before);
+    expectFailure(dir, {"mesh", dir.path("header_only.vdb"), "-o", out}, "header_only.vdb", "truncated", before);
+    expectFailure(dir, {"info", dir.path("truncated.vdb")}, "truncated.vdb", "truncated", before);
+    expectFailure(dir, {"info", "--verify", dir.path("truncated.vdb")}, "truncated.vdb", "truncated", before);
+    CHECK(runVdbsurf({"info", "--verify", dir.path("good.vdb")}).exitCode == 0);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--grid", "nope", "-o", out}, "good.vdb", "no grid named 'nope'; grids: 'ls_sphere'", before);
+    expectFailure(dir, {"mesh", dir.path("vector.vdb"), "-o", out}, "vector.vdb", "no float or double grid", before);
+    expectFailure(dir, {"mesh", dir.path("vector.vdb"), "--grid", "velocity", "-o", out}, "vector.vdb", "vec3s", before);
+    expectFailure(dir, {"mesh", dir.path("nan.vdb"), "-o", out}, "nan.vdb", "NaN", before);
+    expectFailure(dir, {"mesh", dir.path("inf.vdb"), "-o", out}, "inf.vdb", "infinite", before);
+    expectFailure(dir, {"mesh", dir.path("empty.vdb"), "-o", out}, "empty.vdb", "empty", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "0", "-o", out}, "--voxel-size", "positive", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "-0.1", "-o", out}, "--voxel-size", "positive", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "1e-9", "-o", out}, "--voxel-size", "at most", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "1e-5", "-o", out}, "--voxel-size", "too fine", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--iso", "7", "-o", out}, "good.vdb", "no surface", before);
+    expectFailure(dir, {"mesh", "--expr", "x^2 + * 2", "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1", "-o", out}, "--expr",
+                  "column 7", before);
+    expectFailure(dir, {"mesh", "--expr", "sqrt(x) - 0.5", "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1", "-o", out},
+                  "sqrt(x) - 0.5", "undefined (NaN)", before);
+    expectFailure(dir, {"mesh", "--expr", "x", "--voxel-size", "0.1", "-o", out}, "--bbox", "required", before);
+    expectFailure(dir, {"mesh", "--expr", "x", "--bbox", "1,2,3", "--voxel-size", "0.1", "-o", out}, "--bbox", "6", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "-o", dir.path("out.stl")}, "out.stl", "unsupported", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "-o", dir.path("no/such/folder/out.obj")}, "out.obj", "does not exist", before);
+}

@@ -1,0 +1,141 @@
+// GridField: trilinear sampling, conservative bounds, domain, classes and bad grids.
+#include "support/test_support.h"
+
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/vdb/vdb_file.h"
+
+#include <catch2/catch.hpp>
+#include <openvdb/openvdb.h>
+
+#include <random>
+
+using namespace vdbsurf;
+
+namespace {
+
+openvdb::FloatGrid::Ptr noiseGrid(int n, double voxel, unsigned seed) {
+    initializeOpenVdb();
+    auto g = openvdb::FloatGrid::create(1.0f);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(voxel));
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    auto acc = g->getAccessor();
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            for (int k = 0; k < n; ++k) acc.setValue({i - n / 2, j - n / 2, k - n / 2}, u(rng));
+    return g;
+}
+
+} // namespace
+
+TEST_CASE("values are the grid's at voxel centres and trilinear between them") {
+    auto g = noiseGrid(12, 0.5, 1);
+    GridField f(g, "noise");
+    auto acc = g->getConstAccessor();
+    const openvdb::Coord a(0, 0, 0), b(1, 0, 0);
+    CHECK(f.value({0, 0, 0}) == Approx(acc.getValue(a)));
+    CHECK(f.value({0.5, 0, 0}) == Approx(acc.getValue(b)));
+    CHECK(f.value({0.25, 0, 0}) == Approx(0.5 * (acc.getValue(a) + acc.getValue(b))));
+    // Far outside the data: the background.
+    CHECK(f.value({100, 0, 0}) == Approx(1.0));
+}
+
+TEST_CASE("grid bounds contain every sampled value, for aligned and rotated transforms") {
+    for (bool rotate : {false, true}) {
+        auto g = noiseGrid(20, 0.25, 2);
+        if (rotate) {
+            auto xf = openvdb::math::Transform::createLinearTransform(0.25);
+            xf->postRotate(0.4, openvdb::math::Z_AXIS);
+            xf->postRotate(0.3, openvdb::math::X_AXIS);
+            xf->postTranslate(openvdb::Vec3d(0.1, -0.2, 0.3));
+            g->setTransform(xf);
+        }
+        GridField f(g, "noise");
+        std::mt19937 rng(3);
+        std::uniform_real_distribution<double> c(-3.5, 3.5), s(0.0, 1.2), t(0.0, 1.0);
+        for (int b = 0; b < 300; ++b) {
+            const Vec3d centre(c(rng), c(rng), c(rng));
+            const Vec3d half(s(rng), s(rng), s(rng));
+            const Box3 box{centre - half, centre + half};
+            const Interval iv = f.bounds(box);
+            for (int k = 0; k < 60; ++k) {
+                Vec3d q;
+                for (std::size_t a = 0; a < 3; ++a)
+                    q[a] = std::clamp(box.min[a] + t(rng) * 2 * half[a], box.min[a], box.max[a]);
+                const double v = f.value(q);
+                INFO("rotated " << rotate << " value " << v << " in [" << iv.lo << ", " << iv.hi << "]");
+                CHECK(iv.contains(v));
+            }
+        }
+        // A box wholly outside the data holds only the background.
+        const Interval out = f.bounds(Box3{{40, 40, 40}, {41, 41, 41}});
+        CHECK(out.lo == Approx(1.0));
+        CHECK(out.hi == Approx(1.0));
+    }
+}
+
+TEST_CASE("grid bounds are tight on a level set: boxes away from the surface do not straddle") {
+    auto g = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.05);
+    GridField f(g, "sphere");
+    CHECK(f.bounds(Box3{{-0.2, -0.2, -0.2}, {0.2, 0.2, 0.2}}).hi < 0);  // deep inside
+    CHECK(f.bounds(Box3{{1.5, 1.5, 1.5}, {1.8, 1.8, 1.8}}).lo > 0);     // outside
+    const Interval across = f.bounds(Box3{{0.9, -0.05, -0.05}, {1.1, 0.05, 0.05}});
+    CHECK(across.lo < 0);
+    CHECK(across.hi > 0);
+    const Box3 d = f.domain();
+    CHECK(d.min.x < -1.1);
+    CHECK(d.max.x > 1.1);
+    CHECK(d.max.x < 1.5);
+}
+
+TEST_CASE("grid class decides inside and the default iso") {
+    auto ls = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.1);
+    GridField a(ls, "ls");
+    CHECK(a.inside() == Inside::Below);
+    CHECK(a.defaultIso() == 0.0);
+    auto fog = test::makeSphereFog(1.0, 0.3, 0.1);
+    GridField b(fog, "fog");
+    CHECK(b.inside() == Inside::Above);
+    CHECK(b.defaultIso() == 0.5);
+    auto unknown = noiseGrid(4, 1.0, 4); // background 1 > 0: a distance-like field
+    GridField c(unknown, "noise");
+    CHECK(c.gridClass() == "unknown");
+    CHECK(c.inside() == Inside::Below);
+    GridField d(unknown, "noise", Inside::Above);
+    CHECK(d.inside() == Inside::Above);
+}
+
+TEST_CASE("piecewise-linear crossings along a coarse lattice edge are exact") {
+    // Values along x: 1, 1, -1 at x = 0, 1, 2 (voxel 1); an edge from 0 to 2 crosses at 1.5, where
+    // linear interpolation of the end values would say 1.0.
+    initializeOpenVdb();
+    auto g = openvdb::FloatGrid::create(1.0f);
+    g->setGridClass(openvdb::GRID_LEVEL_SET);
+    auto acc = g->getAccessor();
+    acc.setValue({0, 0, 0}, 1.f);
+    acc.setValue({1, 0, 0}, 1.f);
+    acc.setValue({2, 0, 0}, -1.f);
+    GridField f(g, "ramp");
+    const double t = f.edgeCrossing({0, 0, 0}, {2, 0, 0}, 1.0, -1.0, 0.0);
+    CHECK(t * 2 == Approx(1.5));
+}
+
+TEST_CASE("bad grids are refused with a message naming them") {
+    initializeOpenVdb();
+    auto nan = openvdb::FloatGrid::create(0.f);
+    nan->tree().setValue({3, 4, 5}, std::numeric_limits<float>::quiet_NaN());
+    CHECK_THROWS_WITH(GridField(nan, "nan.vdb:density"), Catch::Contains("nan.vdb:density") && Catch::Contains("NaN") &&
+                                                             Catch::Contains("(3, 4, 5)"));
+    auto inf = openvdb::FloatGrid::create(0.f);
+    inf->tree().setValue({1, 1, 1}, std::numeric_limits<float>::infinity());
+    CHECK_THROWS_WITH(GridField(inf, "inf"), Catch::Contains("infinite"));
+    auto empty = openvdb::FloatGrid::create(0.f);
+    CHECK_THROWS_WITH(GridField(empty, "empty.vdb:x"), Catch::Contains("empty"));
+    auto vec = openvdb::Vec3SGrid::create();
+    vec->tree().setValue({0, 0, 0}, openvdb::Vec3s(1, 2, 3));
+    CHECK_THROWS_WITH(GridField(vec, "v"), Catch::Contains("vec3s"));
+    auto dbl = openvdb::DoubleGrid::create(1.0);
+    dbl->tree().setValue({0, 0, 0}, -1.0);
+    CHECK_NOTHROW(GridField(dbl, "double"));
+}

@@ -1,0 +1,39 @@
+// Shared pieces of the vdbsurf command line: how messages look, how lists of numbers are parsed,
+// and how a subcommand is run so that every failure ends in one line and a meaningful exit code.
+#pragma once
+#include "vdbsurf/core/vec3.h"
+
+#include <CLI/CLI.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace vdbsurf::cli {
+
+// Exit codes: 0 success, 1 bad input (Error), 2 bad usage (CLI11), 70 internal failure, 130 cancelled.
+constexpr int kExitInput = 1;
+constexpr int kExitInternal = 70;
+constexpr int kExitCancelled = 130;
+
+struct Globals {
+    bool quiet = false;
+};
+Globals& globals();
+
+// An informational line on stderr ("vdbsurf: ..."), unless --quiet.
+void note(const std::string& text);
+
+// "a,b,c" -> numbers; throws Error naming the option when the count or a number is wrong.
+std::vector<double> parseNumbers(const std::string& option, const std::string& text, std::size_t count);
+Box3 parseBox(const std::string& option, const std::string& text);
+
+// Runs a subcommand body, mapping exceptions to messages and exit codes.
+int runGuarded(const std::function<void()>& body);
+
+// Subcommand registration; each returns the action to run when that subcommand was chosen.
+using Action = std::function<void()>;
+Action addInfoCommand(CLI::App& app);
+Action addMeshCommand(CLI::App& app);
+
+} // namespace vdbsurf::cli

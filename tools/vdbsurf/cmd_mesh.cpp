@@ -1,0 +1,169 @@
+// vdbsurf mesh: a .vdb grid or a formula to an .obj, .ply or .vdb surface.
+#include "cli_common.h"
+
+#include "vdbsurf/core/atomic_file.h"
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/core/threads.h"
+#include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/field/expression_field.h"
+#include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/mesh/mesh_io.h"
+#include "vdbsurf/mesh/mesh_to_vdb.h"
+#include "vdbsurf/vdb/vdb_file.h"
+
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+
+namespace vdbsurf::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(9);
+    s << v;
+    return s.str();
+}
+
+struct MeshOptions {
+    std::string input, output, expr, bbox, grid, stats, method = "mc", inside;
+    std::optional<double> iso, voxelSize;
+    int threads = 0;
+    bool triangles = false;
+};
+
+void writeJsonFile(const std::string& path, const nlohmann::json& j) {
+    AtomicFile target(path);
+    {
+        std::ofstream out(target.tempPath());
+        out << j.dump(2) << "\n";
+        out.close();
+        if (!out) throw Error(path, "cannot write");
+    }
+    target.commit();
+}
+
+void runMesh(const MeshOptions& o) {
+    const auto t0 = Clock::now();
+    if (o.input.empty() == o.expr.empty())
+        throw Error("mesh", o.input.empty() ? "give an input .vdb file or --expr FORMULA" : "give either an input file or --expr, not both");
+    if (!o.expr.empty() && o.bbox.empty()) throw Error("--bbox", "is required with --expr (X0,Y0,Z0,X1,Y1,Z1)");
+    if (o.expr.empty() && !o.bbox.empty()) throw Error("--bbox", "applies only to --expr");
+    if (!o.expr.empty() && !o.grid.empty()) throw Error("--grid", "applies only to .vdb input");
+    if (o.threads < 0) throw Error("--threads", "must be 0 (all cores) or a positive number");
+    const MeshFormat format = meshFormatOf(o.output);
+    if (format != MeshFormat::Obj && format != MeshFormat::Ply && format != MeshFormat::Vdb)
+        throw Error(o.output, "unsupported output format; use .obj, .ply or .vdb");
+    checkWritableTarget(o.output);
+    if (!o.stats.empty()) checkWritableTarget(o.stats);
+
+    ThreadLimit threads(o.threads);
+    std::optional<Inside> inside;
+    if (o.inside == "below") inside = Inside::Below;
+    if (o.inside == "above") inside = Inside::Above;
+
+    std::unique_ptr<Field> field;
+    std::string source;
+    if (!o.expr.empty()) {
+        field = std::make_unique<ExpressionField>(o.expr, parseBox("--bbox", o.bbox));
+        source = "expr: " + o.expr;
+    } else {
+        if (meshFormatOf(o.input) != MeshFormat::Vdb) throw Error(o.input, "unsupported input; give a .vdb file or --expr FORMULA");
+        const LoadedGrid loaded = readScalarGrid(o.input, o.grid);
+        source = o.input + ":" + loaded.name;
+        auto gf = std::make_unique<GridField>(loaded.grid, source, inside);
+        note(loaded.note + ", " + gf->gridClass() + "; " + gf->insideReason());
+        field = std::move(gf);
+    }
+    const double secondsRead = since(t0);
+
+    MeshRequest req;
+    req.iso = o.iso;
+    req.voxelSize = o.voxelSize;
+    req.triangulate = o.triangles;
+    req.cancel = &processCancelToken();
+    MeshReport rep;
+    Mesh mesh = meshField(*field, req, rep);
+    note("iso " + num(rep.iso) + " (" + rep.isoReason + "), lattice spacing " + num(rep.voxelSize) + " (" + rep.voxelSizeReason +
+         ")");
+
+    const auto tWrite = Clock::now();
+    const std::vector<std::string> provenance = {
+        std::string("vdbsurf ") + VDBSURF_VERSION, "source: " + source, "method: " + std::string(methodName(req.method)),
+        "iso: " + num(rep.iso), "voxel_size: " + num(rep.voxelSize)};
+    processCancelToken().check();
+    if (format == MeshFormat::Vdb) {
+        LevelSetWriteOptions lw;
+        lw.voxelSize = rep.voxelSize;
+        lw.metadata = {{"vdbsurf_version", VDBSURF_VERSION}, {"vdbsurf_source", source},
+                       {"vdbsurf_method", methodName(req.method)}, {"vdbsurf_iso", num(rep.iso)},
+                       {"vdbsurf_voxel_size", num(rep.voxelSize)}};
+        writeMeshAsLevelSet(o.output, mesh, lw);
+    } else {
+        writeMesh(o.output, mesh, provenance);
+    }
+    const double secondsWrite = since(tWrite);
+
+    std::ostringstream summary;
+    summary << "wrote " << o.output << ": " << rep.vertices << " vertices, " << rep.triangles << " triangles, " << rep.quads
+            << " quads" << (rep.otherPolygons ? ", " + std::to_string(rep.otherPolygons) + " other polygons" : std::string())
+            << " (" << num(since(t0)) << " s, " << threads.threads() << (threads.threads() == 1 ? " thread)" : " threads)");
+    note(summary.str());
+
+    if (!o.stats.empty()) {
+        nlohmann::json j{{"input", source},
+                         {"output", o.output},
+                         {"method", methodName(req.method)},
+                         {"iso", rep.iso},
+                         {"voxel_size", rep.voxelSize},
+                         {"threads", threads.threads()},
+                         {"vertices", rep.vertices},
+                         {"triangles", rep.triangles},
+                         {"quads", rep.quads},
+                         {"other_polygons", rep.otherPolygons},
+                         {"lattice",
+                          {{"upper_nodes_tested", rep.upperNodesTested},
+                           {"leaf_blocks_tested", rep.leafBlocksTested},
+                           {"leaf_blocks_visited", rep.leafBlocksVisited},
+                           {"cells_visited", rep.cellsExamined},
+                           {"cells_active", rep.cellsActive},
+                           {"cells_with_surface", rep.cellsWithSurface}}},
+                         {"seconds",
+                          {{"read", secondsRead},
+                           {"lattice", rep.secondsLattice},
+                           {"mesh", rep.secondsMesh},
+                           {"write", secondsWrite},
+                           {"total", since(t0)}}}};
+        writeJsonFile(o.stats, j);
+    }
+}
+
+} // namespace
+
+Action addMeshCommand(CLI::App& app) {
+    auto o = std::make_shared<MeshOptions>();
+    CLI::App* sub = app.add_subcommand("mesh", "Mesh a float/double grid of a .vdb file, or a formula, to .obj, .ply or .vdb");
+    sub->add_option("input", o->input, "Input .vdb file (or use --expr)");
+    sub->add_option("-o,--output", o->output, "Output mesh: .obj, .ply, or .vdb (level set via OpenVDB meshToVolume)")->required();
+    sub->add_option("--expr", o->expr, "Formula in x, y, z, negative inside (iso 0), e.g. \"x^2+y^2+z^2-1\"");
+    sub->add_option("--bbox", o->bbox, "Box for --expr: X0,Y0,Z0,X1,Y1,Z1 (world units)");
+    sub->add_option("--grid", o->grid, "Grid name (default: the first float/double grid)");
+    sub->add_option("--iso", o->iso, "Iso value (default 0 for level sets and formulas, 0.5 for fog)");
+    sub->add_option("--voxel-size", o->voxelSize, "Lattice spacing in world units (default: the grid's voxel size)");
+    sub->add_option("--method", o->method, "Mesher: mc (marching cubes)")->check(CLI::IsMember({"mc"}));
+    sub->add_option("--inside", o->inside, "Override which side is inside: below or above the iso value")
+        ->check(CLI::IsMember({"below", "above"}));
+    sub->add_option("--threads", o->threads, "Worker threads (0: all cores)");
+    sub->add_flag("--triangles", o->triangles, "Split quads so the output holds triangles only");
+    sub->add_option("--stats", o->stats, "Write statistics as JSON to this file");
+    return [o] { runMesh(*o); };
+}
+
+} // namespace vdbsurf::cli
