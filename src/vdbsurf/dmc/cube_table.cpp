@@ -6,18 +6,6 @@
 
 namespace vdbsurf {
 
-Vec3i cubeEdgeOrigin(int e) {
-    const int a = cubeEdgeAxis(e), q = e & 3;
-    Vec3i o;
-    o[std::size_t((a + 1) % 3)] = q & 1;
-    o[std::size_t((a + 2) % 3)] = (q >> 1) & 1;
-    return o;
-}
-
-int cubeEdgeIndex(int axis, const Vec3i& origin) {
-    return axis * 4 + origin[std::size_t((axis + 1) % 3)] + 2 * origin[std::size_t((axis + 2) % 3)];
-}
-
 bool cubeEdgesShareFace(int a, int b) {
     // Edge e lies on the faces (u, origin[u]) and (v, origin[v]) of its two other axes.
     const int axA = cubeEdgeAxis(a), axB = cubeEdgeAxis(b);

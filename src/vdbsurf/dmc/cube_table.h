@@ -34,9 +34,18 @@ bool cubeEdgesShareFace(int a, int b);
 const CubeCase& cubeCase(unsigned config);
 
 constexpr int cubeEdgeAxis(int e) { return e >> 2; }
+
 // Offset of edge e's min corner within the cell.
-Vec3i cubeEdgeOrigin(int e);
+inline Vec3i cubeEdgeOrigin(int e) {
+    // axis x: q bits on (y, z); axis y: on (z, x); axis z: on (x, y).
+    static constexpr int table[12][3] = {{0, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 1, 1}, {0, 0, 0}, {0, 0, 1},
+                                         {1, 0, 0}, {1, 0, 1}, {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+    return {table[e][0], table[e][1], table[e][2]};
+}
+
 // The edge along `axis` whose min corner is at offset `origin` (each component 0 or 1).
-int cubeEdgeIndex(int axis, const Vec3i& origin);
+inline int cubeEdgeIndex(int axis, const Vec3i& origin) {
+    return axis * 4 + origin[std::size_t((axis + 1) % 3)] + 2 * origin[std::size_t((axis + 2) % 3)];
+}
 
 } // namespace vdbsurf

@@ -49,7 +49,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.frame = field.naturalFrame(report.voxelSize);
 
     const openvdb::CoordBBox range = latticeCellRange(field, report.frame);
-    const Lattice lattice = buildLattice(field, report.frame, range, report.iso, request.cancel);
+    const Lattice lattice = buildLattice(field, report.frame, range, report.iso, CellTest::CornerSigns, request.cancel);
     report.upperNodesTested = lattice.stats.upperNodesTested;
     report.leafBlocksTested = lattice.stats.leafBlocksTested;
     report.leafBlocksVisited = lattice.stats.leafBlocksVisited;

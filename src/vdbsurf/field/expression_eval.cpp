@@ -15,8 +15,12 @@ namespace vdbsurf {
 namespace {
 
 namespace bi = boost::numeric::interval_lib;
-using BInterval = boost::numeric::interval<
-    double, bi::policies<bi::save_state<bi::rounded_transc_std<double>>, bi::checking_base<double>>>;
+// The "opp" policies compute every bound with the FPU rounding upward (lower bounds as negated
+// upper bounds), so the rounding mode is switched once per evaluation (ProtectedInterval's
+// rounding object in evalBounds) instead of around every operation.
+using ProtectedInterval = boost::numeric::interval<
+    double, bi::policies<bi::save_state<bi::rounded_transc_opp<double>>, bi::checking_base<double>>>;
+using BInterval = bi::unprotect<ProtectedInterval>::type;
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -222,6 +226,7 @@ double evalGradient(const ExprProgram& prog, const Vec3d& p, Vec3d& gradient) {
 }
 
 Interval evalBounds(const ExprProgram& prog, const Box3& box) {
+    ProtectedInterval::traits_type::rounding upward; // sets the rounding mode, restores it on return
     const BInterval r = run<IntervalOps>(prog, BInterval(box.min.x, box.max.x), BInterval(box.min.y, box.max.y),
                                          BInterval(box.min.z, box.max.z));
     if (boost::numeric::empty(r) || std::isnan(r.lower()) || std::isnan(r.upper())) return Interval{};

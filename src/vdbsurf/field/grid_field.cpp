@@ -164,8 +164,9 @@ public:
                             acc, openvdb::Vec3d(ticks[0][std::size_t(i)], ticks[1][std::size_t(j)], ticks[2][std::size_t(k)]))));
             return {mm.lo, mm.hi};
         }
-        // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1.
-        const CoordBBox ib(clampCoord(lo, 0), clampCoord(hi, 1));
+        // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1, the latter
+        // with weight zero when q is a whole number (up to rounding, which straddles() absorbs).
+        const CoordBBox ib(lowerSupport(lo), upperSupport(hi));
         MinMax mm;
         query(ib, mm);
         return {mm.lo, mm.hi};
@@ -283,10 +284,18 @@ public:
     }
 
 private:
-    static Coord clampCoord(const openvdb::Vec3d& v, int add) {
-        auto c = [&](double x) {
-            const double f = std::floor(x) + add;
-            return int(std::clamp(f, -double(1 << 30), double(1 << 30)));
+    static int clampIndex(double f) { return int(std::clamp(f, -double(1 << 30), double(1 << 30))); }
+    static Coord lowerSupport(const openvdb::Vec3d& v) {
+        auto c = [](double x) {
+            const double r = std::nearbyint(x);
+            return clampIndex(std::fabs(x - r) < 1e-9 ? r : std::floor(x));
+        };
+        return Coord(c(v.x()), c(v.y()), c(v.z()));
+    }
+    static Coord upperSupport(const openvdb::Vec3d& v) {
+        auto c = [](double x) {
+            const double r = std::nearbyint(x);
+            return clampIndex(std::fabs(x - r) < 1e-9 ? r : std::floor(x) + 1);
         };
         return Coord(c(v.x()), c(v.y()), c(v.z()));
     }

@@ -121,7 +121,7 @@ CoordBBox latticeCellRange(const Field& field, const LatticeFrame& frame) {
     return CoordBBox(lo, hi);
 }
 
-Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordBBox& cellRange, double iso,
+Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordBBox& cellRange, double iso, CellTest test,
                      const CancelToken* cancel) {
     const auto start = std::chrono::steady_clock::now();
     Lattice lat;
@@ -145,49 +145,78 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     blocks = straddlingChildren(field, frame, blocks, kL1, kLeafDim, cellRange, iso, cancel, st.leafBlocksTested);
     st.leafBlocksVisited = blocks.size();
 
-    const bool cornersExact = field.cellBoundsAreCornerRange(frame);
+    // Where a cell's bounds are its corners' range (or bounds are not wanted) the corner values decide.
+    const bool cornersExact = test == CellTest::CornerSigns || field.cellBoundsAreCornerRange(frame);
     const Inside side = field.inside();
     std::vector<std::unique_ptr<MaskLeaf>> leaves(blocks.size());
     std::vector<std::int64_t> nanAt(blocks.size(), -1);
-    std::vector<std::uint32_t> examined(blocks.size(), 0);
+    std::vector<std::uint32_t> cellsExamined(blocks.size(), 0);
     Progress progress("lattice", blocks.size(), cancel);
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
         std::array<double, kBlockNodeCount> vals;
+        // Per node column (x, y): bit z set when node (x, y, z) is inside / exactly at iso.
+        std::array<std::uint16_t, kBlockNodes * kBlockNodes> inside, atIso;
         for (std::size_t bi = r.begin(); bi < r.end(); ++bi) {
             const Coord o = blocks[bi];
             CoordBBox box(o, o.offsetBy(kLeafDim - 1));
             box.intersect(cellRange);
+            const Coord lo = box.min() - o, hi = box.max() - o;
             field.sampleNodes(frame, toVec(o), {kBlockNodes, kBlockNodes, kBlockNodes}, nullptr, vals.data());
-            auto leaf = std::make_unique<MaskLeaf>(o, false);
-            std::uint32_t count = 0;
-            for (int x = box.min().x(); x <= box.max().x(); ++x)
-                for (int y = box.min().y(); y <= box.max().y(); ++y)
-                    for (int z = box.min().z(); z <= box.max().z(); ++z) {
-                        const int lx = x - o.x(), ly = y - o.y(), lz = z - o.z();
-                        ++count;
-                        double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-                        bool in0 = false, change = false;
-                        for (int c = 0; c < 8; ++c) {
-                            const int n = (lx + (c & 1)) + kBlockNodes * (ly + ((c >> 1) & 1)) +
-                                          kBlockNodes * kBlockNodes * (lz + ((c >> 2) & 1));
-                            const double v = vals[std::size_t(n)];
-                            if (std::isnan(v)) { if (nanAt[bi] < 0) nanAt[bi] = n; continue; }
-                            lo = std::min(lo, v);
-                            hi = std::max(hi, v);
-                            const bool in = isInside(v, iso, side);
-                            if (c == 0) in0 = in;
-                            else if (in != in0) change = true;
+            for (int x = 0; x < kBlockNodes; ++x)
+                for (int y = 0; y < kBlockNodes; ++y) {
+                    std::uint16_t in = 0, eq = 0;
+                    for (int z = 0; z < kBlockNodes; ++z) {
+                        const int n = x + kBlockNodes * y + kBlockNodes * kBlockNodes * z;
+                        const double v = vals[std::size_t(n)];
+                        if (std::isnan(v)) {
+                            // Only nodes of cells inside the range count.
+                            if (nanAt[bi] < 0 && x <= hi.x() + 1 && y <= hi.y() + 1 && z <= hi.z() + 1 && x >= lo.x() &&
+                                y >= lo.y() && z >= lo.z())
+                                nanAt[bi] = n;
+                            continue;
                         }
-                        bool active = change;
-                        if (!active) {
-                            active = cornersExact ? (lo <= iso && iso <= hi)
-                                                  : straddles(field.bounds(frame.cellBox({x, y, z})), iso);
-                        }
-                        if (active) leaf->setValueOn(Coord(x, y, z));
+                        in |= std::uint16_t(isInside(v, iso, side) ? 1u << z : 0u);
+                        eq |= std::uint16_t(v == iso ? 1u << z : 0u);
                     }
-            examined[bi] = count;
-            if (!leaf->isEmpty()) leaves[bi] = std::move(leaf);
+                    inside[std::size_t(x * kBlockNodes + y)] = in;
+                    atIso[std::size_t(x * kBlockNodes + y)] = eq;
+                }
+            // Eight cells along z at once: a cell changes side when some but not all of its
+            // corners are inside; it also touches the surface when it has no inside corner and
+            // a corner exactly at iso.
+            const unsigned zMask = (0xFFu >> (7 - hi.z())) & (0xFFu << lo.z());
+            MaskLeaf::NodeMaskType mask;
+            std::uint32_t examined = 0;
+            for (int x = lo.x(); x <= hi.x(); ++x) {
+                std::uint64_t word = 0;
+                for (int y = lo.y(); y <= hi.y(); ++y) {
+                    const std::size_t a = std::size_t(x * kBlockNodes + y), b = a + kBlockNodes;
+                    const unsigned orIn = inside[a] | inside[a + 1] | inside[b] | inside[b + 1];
+                    const unsigned andIn = inside[a] & inside[a + 1] & inside[b] & inside[b + 1];
+                    const unsigned orEq = atIso[a] | atIso[a + 1] | atIso[b] | atIso[b + 1];
+                    const unsigned anyIn = (orIn | (orIn >> 1)) & 0xFFu;
+                    const unsigned allIn = (andIn & (andIn >> 1)) & 0xFFu;
+                    const unsigned anyEq = (orEq | (orEq >> 1)) & 0xFFu;
+                    unsigned row = ((anyIn & ~allIn) | (anyEq & ~anyIn)) & zMask;
+                    if (!cornersExact) {
+                        // The field may cross iso inside a cell whose corners agree: ask its bounds.
+                        for (int z = lo.z(); z <= hi.z(); ++z) {
+                            if (row & (1u << z)) continue;
+                            if (straddles(field.bounds(frame.cellBox({o.x() + x, o.y() + y, o.z() + z})), iso)) row |= 1u << z;
+                        }
+                    }
+                    word |= std::uint64_t(row) << (8 * y);
+                    examined += std::uint32_t(__builtin_popcount(zMask));
+                }
+                mask.template getWord<std::uint64_t>(openvdb::Index(x)) = word;
+            }
+            cellsExamined[bi] = examined;
+            if (!mask.isOff()) {
+                auto leaf = std::make_unique<MaskLeaf>(o, false);
+                leaf->setValueMask(mask);
+                leaves[bi] = std::move(leaf);
+            }
             progress.advance();
         }
     });
@@ -199,7 +228,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
         throw Error(field.describe(), "is undefined (NaN) at " + pointText(frame.nodeWorld(node)));
     }
     for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
-        st.cellsExamined += examined[bi];
+        st.cellsExamined += cellsExamined[bi];
         if (!leaves[bi]) continue;
         st.cellsActive += leaves[bi]->onVoxelCount();
         lat.cells->addLeaf(leaves[bi].release());

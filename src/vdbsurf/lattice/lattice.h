@@ -35,10 +35,16 @@ struct Lattice {
 // h is not a positive finite number or gives an absurd lattice.
 openvdb::CoordBBox latticeCellRange(const Field& field, const LatticeFrame& frame);
 
-// Active cells: those whose bounds straddle iso, plus those whose corner values change side (so
-// that every edge with a sign change has its owning cell active, whatever the rounding of the
-// bounds). Throws Error naming the field where a node value is NaN.
+enum class CellTest {
+    Bounds,      // cells whose bounds straddle iso: every cell the surface may pass (thin parts too)
+    CornerSigns  // only cells whose corner values change side: all that plain marching cubes meshes
+};
+
+// Active cells: those whose corner values change side (so that every edge with a sign change has
+// its owning cell active, whatever the rounding of the bounds), plus, with CellTest::Bounds, those
+// whose bounds straddle iso. Blocks above the cells are always culled by their bounds. Throws
+// Error naming the field where a node value is NaN.
 Lattice buildLattice(const Field& field, const LatticeFrame& frame, const openvdb::CoordBBox& cellRange, double iso,
-                     const CancelToken* cancel = nullptr);
+                     CellTest test = CellTest::Bounds, const CancelToken* cancel = nullptr);
 
 } // namespace vdbsurf

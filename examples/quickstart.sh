@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# The first things a new user runs: mesh a formula, turn the mesh into a VDB level set, look at
+# that file, and mesh it back, the way a pipeline would mesh a .vdb from disk.
+#   examples/quickstart.sh BUILD/bin/vdbsurf OUT_FOLDER
+set -euo pipefail
+vdbsurf=${1:?usage: quickstart.sh path/to/vdbsurf out-folder}
+out=${2:?usage: quickstart.sh path/to/vdbsurf out-folder}
+here=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$out"
+
+# A torus knot of blobs: a formula, negative inside, read from examples/formulas/.
+formula=$(grep -v '^#' "$here/formulas/twisted_torus.txt" | tr -d '\n')
+echo "== 1. mesh a formula (examples/formulas/twisted_torus.txt)"
+"$vdbsurf" mesh --expr "$formula" --bbox -1.6,-1.6,-0.8,1.6,1.6,0.8 --voxel-size 0.02 \
+  -o "$out/twisted_torus.obj" --stats "$out/twisted_torus_stats.json"
+
+echo "== 2. the same surface as an OpenVDB level set (OpenVDB meshToVolume)"
+"$vdbsurf" -q mesh --expr "$formula" --bbox -1.6,-1.6,-0.8,1.6,1.6,0.8 --voxel-size 0.02 \
+  -o "$out/twisted_torus.vdb"
+
+echo "== 3. what the .vdb holds"
+"$vdbsurf" info "$out/twisted_torus.vdb"
+
+echo "== 4. mesh the .vdb, as from any vdb_tool / Houdini / Blender cache, at a coarser spacing"
+"$vdbsurf" mesh "$out/twisted_torus.vdb" -o "$out/twisted_torus_from_vdb.ply" --voxel-size 0.04
+
+echo
+echo "results are in $out:"
+ls -l "$out" | awk 'NR > 1 {print "  " $NF "  (" $5 " bytes)"}'

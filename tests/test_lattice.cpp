@@ -1,0 +1,82 @@
+// The sparse lattice: which cells are active, and that culling follows the surface.
+#include "support/test_support.h"
+
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/field/expression_field.h"
+#include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/lattice/lattice.h"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+
+using namespace vdbsurf;
+
+namespace {
+Lattice build(const Field& f, double h, CellTest test) {
+    const LatticeFrame frame = f.naturalFrame(h);
+    return buildLattice(f, frame, latticeCellRange(f, frame), f.defaultIso(), test);
+}
+} // namespace
+
+TEST_CASE("a plate thinner than a cell and between nodes is found by bounds, not by corner signs") {
+    // Plate 0.04 <= z <= 0.06; nodes at z = 0 and 0.2 are both outside it.
+    ExpressionField plate("abs(z - 0.05) - 0.01", Box3{{-1, -1, -1}, {1, 1, 1}});
+    const Lattice byBounds = build(plate, 0.2, CellTest::Bounds);
+    const Lattice bySigns = build(plate, 0.2, CellTest::CornerSigns);
+    CHECK(bySigns.stats.cellsActive == 0);
+    // Exactly the 10 x 10 cells of the layer 0 <= z <= 0.2 (interval bounds of abs() are tight here).
+    CHECK(byBounds.stats.cellsActive == 100);
+    for (auto it = byBounds.cells->cbeginValueOn(); it; ++it) CHECK(it.getCoord().z() == 5);
+}
+
+TEST_CASE("every cell whose corners change side is active") {
+    ExpressionField f("sin(3*x)*sin(3*y)*sin(3*z) - 0.1", Box3{{-1, -1, -1}, {1, 1, 1}});
+    const double h = 0.05;
+    const LatticeFrame frame = f.naturalFrame(h);
+    const Lattice lat = buildLattice(f, frame, latticeCellRange(f, frame), 0.0, CellTest::CornerSigns);
+    const auto range = lat.cellRange;
+    std::size_t changing = 0;
+    for (int i = range.min().x(); i <= range.max().x(); ++i)
+        for (int j = range.min().y(); j <= range.max().y(); ++j)
+            for (int k = range.min().z(); k <= range.max().z(); ++k) {
+                bool any = false, all = true;
+                for (int c = 0; c < 8; ++c) {
+                    const bool in = f.value(frame.nodeWorld(i + (c & 1), j + ((c >> 1) & 1), k + ((c >> 2) & 1))) < 0;
+                    any |= in;
+                    all &= in;
+                }
+                if (any && !all) {
+                    ++changing;
+                    CHECK(lat.cells->isValueOn(openvdb::Coord(i, j, k)));
+                }
+            }
+    CHECK(changing > 1000);
+    CHECK(lat.stats.cellsActive == changing);
+}
+
+TEST_CASE("work grows with the surface, not the bounding box") {
+    // A small sphere in a huge box: the blocks tested stay near the sphere.
+    ExpressionField f("x^2+y^2+z^2-0.25", Box3{{-100, -100, -100}, {100, 100, 100}});
+    const Lattice lat = build(f, 0.01, CellTest::Bounds);
+    const double boxCells = std::pow(200 / 0.01, 3);
+    CHECK(lat.stats.cellsActive > 0);
+    CHECK(double(lat.stats.cellsExamined) < 1e-6 * boxCells);
+    CHECK(lat.stats.leafBlocksTested < 100000);
+}
+
+TEST_CASE("absurd spacings are refused before any work") {
+    ExpressionField f("x^2+y^2+z^2-1", Box3{{-2, -2, -2}, {2, 2, 2}});
+    for (double h : {0.0, -1.0, std::nan("")}) {
+        CHECK_THROWS_WITH(latticeCellRange(f, LatticeFrame{{-2, -2, -2}, h}), Catch::Contains("--voxel-size"));
+    }
+    CHECK_THROWS_WITH(latticeCellRange(f, LatticeFrame{{-2, -2, -2}, 1e-9}), Catch::Contains("at most"));
+    const LatticeFrame fine{{-2, -2, -2}, 2e-5};
+    CHECK_THROWS_WITH(buildLattice(f, fine, latticeCellRange(f, fine), 0.0), Catch::Contains("too fine"));
+}
+
+TEST_CASE("a formula undefined on the lattice is reported with the point") {
+    ExpressionField f("sqrt(x) - 0.5", Box3{{-1, -1, -1}, {1, 1, 1}});
+    const LatticeFrame frame = f.naturalFrame(0.1);
+    CHECK_THROWS_WITH(buildLattice(f, frame, latticeCellRange(f, frame), 0.0), Catch::Contains("NaN") && Catch::Contains("sqrt(x)"));
+}

@@ -1,0 +1,42 @@
+// What every benchmark shares: timing, peak-memory measurement, the shared data folder, and a
+// result table printed to stdout and optionally written as JSON (--json FILE).
+#pragma once
+#include <nlohmann/json.hpp>
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace vdbsurf::bench {
+
+// Peak resident memory added while fn runs, in MiB (Linux: VmHWM reset via clear_refs), and
+// its wall time in seconds.
+struct Measure {
+    double seconds = 0;
+    double peakMiB = 0;
+};
+Measure measure(const std::function<void()>& fn);
+
+// Runs fn `repeat` times; the median time and the largest peak.
+Measure measureMedian(int repeat, const std::function<void()>& fn);
+
+// ../shared/data/<relative> seen from the source tree, or "" when absent.
+std::string sharedData(const std::string& relative);
+
+class Table {
+public:
+    explicit Table(std::vector<std::string> columns) : mColumns(std::move(columns)) {}
+    void add(const std::vector<std::string>& row, nlohmann::json record);
+    void print() const;
+    // Writes {"benchmark": name, "rows": [records...], "meta": meta} atomically.
+    void writeJson(const std::string& path, const std::string& name, const nlohmann::json& meta) const;
+
+private:
+    std::vector<std::string> mColumns;
+    std::vector<std::vector<std::string>> mRows;
+    nlohmann::json mRecords = nlohmann::json::array();
+};
+
+std::string fixed(double v, int digits);
+
+} // namespace vdbsurf::bench
