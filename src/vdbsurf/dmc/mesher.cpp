@@ -2,7 +2,7 @@
 
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
-#include "vdbsurf/dmc/marching_cubes.h"
+#include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/lattice/lattice.h"
 
 #include <cmath>
@@ -57,11 +57,11 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.cellsActive = lattice.stats.cellsActive;
     report.secondsLattice = lattice.stats.seconds;
 
-    MarchingCubesOptions mc;
+    SurfaceOptions mc;
     mc.iso = report.iso;
     mc.triangulate = request.triangulate;
     mc.cancel = request.cancel;
-    MarchingCubesStats mcStats;
+    SurfaceStats mcStats;
     Mesh mesh = marchingCubes(field, lattice, mc, &mcStats);
     report.cellsWithSurface = mcStats.cellsWithSurface;
     report.secondsMesh = mcStats.seconds;

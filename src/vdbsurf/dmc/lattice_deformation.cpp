@@ -1,0 +1,57 @@
+#include "vdbsurf/dmc/lattice_deformation.h"
+
+#include "vdbsurf/lattice/lattice.h"
+#include "vdbsurf/vdb/vdb_file.h"
+
+
+namespace vdbsurf {
+
+void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation) {
+    openvdb::MaskTree around(false);
+    auto add = [&](const openvdb::Coord& n) {
+        for (int d = 0; d < 8; ++d) {
+            const openvdb::Coord c = n.offsetBy(-(d & 1), -((d >> 1) & 1), -((d >> 2) & 1));
+            if (lattice.cellRange.isInside(c)) around.setValueOn(c);
+        }
+    };
+    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) add(it.getCoord());
+    for (auto it = deformation.onSurface->cbeginValueOn(); it; ++it) add(it.getCoord());
+    lattice.cells->topologyUnion(around);
+}
+
+void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
+                     const std::map<std::string, std::string>& metadata) {
+    initializeOpenVdb();
+    auto xform = openvdb::math::Transform::createLinearTransform(lattice.frame.h);
+    xform->postTranslate(openvdb::Vec3d(lattice.frame.origin.x, lattice.frame.origin.y, lattice.frame.origin.z));
+
+    // Nodes of active cells: the cells dilated by one towards +x, +y, +z.
+    openvdb::MaskTree nodes(*lattice.cells);
+    {
+        openvdb::MaskTree shifted(false);
+        for (auto it = lattice.cells->cbeginValueOn(); it; ++it)
+            for (int d = 1; d < 8; ++d) shifted.setValueOn(it.getCoord().offsetBy(d & 1, (d >> 1) & 1, (d >> 2) & 1));
+        nodes.topologyUnion(shifted);
+    }
+    auto offsets = openvdb::Vec3SGrid::create(openvdb::Vec3f(0.0f));
+    offsets->tree().topologyUnion(nodes);
+    auto acc = offsets->getAccessor();
+    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) acc.setValue(it.getCoord(), *it);
+    offsets->setName("offsets");
+    offsets->setVectorType(openvdb::VEC_CONTRAVARIANT_ABSOLUTE);
+    offsets->setTransform(xform);
+    auto cells = openvdb::MaskGrid::create(false);
+    cells->setTree(std::make_shared<openvdb::MaskTree>(*lattice.cells));
+    cells->setName("cells");
+    // A cell's voxel sits at its min-corner node: the same index space as the nodes.
+    cells->setTransform(xform->copy());
+    auto surface = openvdb::MaskGrid::create(false);
+    surface->setTree(std::make_shared<openvdb::MaskTree>(*deformation.onSurface));
+    surface->setName("on_surface");
+    surface->setTransform(xform->copy());
+    for (openvdb::GridBase* g : std::initializer_list<openvdb::GridBase*>{offsets.get(), cells.get(), surface.get()})
+        for (const auto& [k, v] : metadata) g->insertMeta(k, openvdb::StringMetadata(v));
+    writeVdbFile(path, {offsets, cells, surface});
+}
+
+} // namespace vdbsurf

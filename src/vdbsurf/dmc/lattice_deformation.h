@@ -1,0 +1,37 @@
+// The deformed lattice of Deformed Marching Cubes: which nodes moved, where to (an offset in
+// world units, always inside the node's own cell Ω = node + [-h/2, h/2)^3, so deformed cells
+// never fold), and which nodes were placed on a sharp feature of the surface (their value is
+// taken to be the iso value itself). Sparse VDB trees in lattice node index space: the offsets
+// tree is what --lattice-out writes.
+#pragma once
+#include "vdbsurf/core/lattice_frame.h"
+
+#include <openvdb/openvdb.h>
+
+#include <map>
+#include <string>
+
+namespace vdbsurf {
+
+struct Lattice;
+
+struct LatticeDeformation {
+    openvdb::Vec3STree::Ptr offsets = std::make_shared<openvdb::Vec3STree>(openvdb::Vec3f(0.0f));
+    openvdb::MaskTree::Ptr onSurface = std::make_shared<openvdb::MaskTree>(false);
+
+    bool empty() const { return offsets->empty() && onSurface->empty(); }
+    std::uint64_t movedNodes() const { return offsets->activeVoxelCount(); }
+};
+
+// Activates the cells around every moved node (clipped to the lattice's range): a node that
+// moved can change the sides of the cells it is a corner of.
+void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation);
+
+// Writes the deformed lattice as a .vdb readable by any OpenVDB tool: a Vec3f grid "offsets"
+// (world-unit node offsets; every node of an active cell is active, unmoved nodes hold zero), a
+// mask grid "cells" (the lattice's active cells) and a mask grid "on_surface" (nodes placed on
+// sharp features), with the lattice spacing and origin as their transform.
+void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
+                     const std::map<std::string, std::string>& metadata);
+
+} // namespace vdbsurf

@@ -1,0 +1,523 @@
+#include "vdbsurf/dmc/lattice_surface.h"
+
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/progress.h"
+#include "vdbsurf/dmc/cube_table.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
+
+#include <openvdb/tree/LeafManager.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <stdexcept>
+#include <unordered_map>
+
+namespace vdbsurf {
+
+using openvdb::Coord;
+using openvdb::CoordBBox;
+
+namespace {
+
+using MaskLeaf = openvdb::MaskTree::LeafNodeType;
+constexpr int kN = 9; // nodes per block side
+constexpr int kNodeCount = kN * kN * kN;
+
+inline int nodeIndex(int x, int y, int z) { return x + kN * y + kN * kN * z; }
+
+// Per-leaf results of the first pass: the vertices this leaf owns and what the second pass
+// needs to find them again (cell rank -> first vertex, owned-edge mask).
+struct LeafWork {
+    Coord origin;
+    std::array<std::uint16_t, 8> wordRank{};
+    std::array<std::int32_t, 8> neighbor{}; // leaf index at origin + 8 * (dx, dy, dz), -1 if none
+    std::vector<std::uint8_t> config;
+    std::vector<std::uint16_t> ownedEdges;
+    std::vector<std::uint16_t> vertexPrefix;
+    std::vector<Vec3f> vertices;
+    std::vector<Vec3f> normals;
+    // Vertices that sit exactly on a node whose value is the iso value: (local vertex, node).
+    std::vector<std::pair<std::uint32_t, Coord>> nodeVertices;
+    std::uint32_t centreCount = 0; // vertices added at loop centres, numbered after the edge vertices
+    std::uint32_t faceCount = 0, indexCount = 0;
+    std::uint32_t vertexBase = 0, faceBase = 0, indexBase = 0;
+    std::uint64_t cellsWithSurface = 0;
+};
+
+inline std::uint32_t cellRank(const MaskLeaf& leaf, const LeafWork& w, openvdb::Index offset) {
+    const auto word = leaf.getValueMask().template getWord<std::uint64_t>(offset >> 6);
+    const std::uint64_t below = word & ((std::uint64_t(1) << (offset & 63)) - 1);
+    return w.wordRank[offset >> 6] + std::uint32_t(__builtin_popcountll(below));
+}
+
+// The cell that holds the vertex of the edge from node `a` along `axis`: the cell whose min
+// corner is `a`, or, where that cell lies beyond the lattice's max faces, the neighbour inside.
+inline Coord edgeOwner(const Coord& a, int axis, const CoordBBox& range) {
+    Coord o = a;
+    for (int k = 1; k <= 2; ++k) {
+        const int ax = (axis + k) % 3;
+        if (o[ax] > range.max()[ax]) o[ax] -= 1;
+    }
+    return o;
+}
+
+inline bool onMaxFace(const Coord& c, const CoordBBox& range) {
+    return c.x() == range.max().x() || c.y() == range.max().y() || c.z() == range.max().z();
+}
+
+std::uint32_t loopFaces(std::uint32_t k, bool triangulate) { return k == 4 ? (triangulate ? 2 : 1) : k - 2; }
+std::uint32_t loopIndices(std::uint32_t k, bool triangulate) { return k == 4 ? (triangulate ? 6 : 4) : 3 * (k - 2); }
+
+struct VertexRef {
+    std::uint32_t leaf, local;
+};
+
+} // namespace
+
+struct LatticeSurface::Impl {
+    const Field& field;
+    const Lattice& lattice;
+    const LatticeDeformation* deformation;
+    SurfaceOptions options;
+    bool linear;
+    openvdb::tree::LeafManager<const openvdb::MaskTree> leafManager;
+    std::vector<LeafWork> work;
+    SurfaceStats stats;
+    std::chrono::steady_clock::time_point start;
+    bool meshTaken = false;
+
+    Impl(const Field& f, const Lattice& l, const LatticeDeformation* d, const SurfaceOptions& o)
+        : field(f), lattice(l), deformation(d && !d->empty() ? d : nullptr), options(o),
+          linear(f.edgesAreLinear(l.frame)), leafManager(*l.cells), start(std::chrono::steady_clock::now()) {}
+
+    void firstPass();
+    VertexRef vertexOf(const LeafWork& w, const Coord& cell, int e) const;
+    void weldNodeVertices(Mesh& mesh);
+};
+
+void LatticeSurface::Impl::firstPass() {
+    const double iso = options.iso;
+    const Inside side = field.inside();
+    const LatticeFrame& frame = lattice.frame;
+    const CoordBBox& range = lattice.cellRange;
+    const bool tri = options.triangulate;
+    const double outward = side == Inside::Below ? 1.0 : -1.0;
+
+    const std::size_t leafCount = leafManager.leafCount();
+    work.resize(leafCount);
+    std::unordered_map<const MaskLeaf*, std::int32_t> indexOf;
+    indexOf.reserve(leafCount * 2);
+    for (std::size_t i = 0; i < leafCount; ++i) indexOf.emplace(&leafManager.leaf(i), std::int32_t(i));
+
+    Progress progress("surface crossings", leafCount, options.cancel);
+
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 8), [&](const tbb::blocked_range<std::size_t>& r) {
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*lattice.cells);
+        std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>> offsetAcc;
+        std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>> surfaceAcc;
+        if (deformation) {
+            offsetAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>>(*deformation->offsets);
+            surfaceAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>>(*deformation->onSurface);
+        }
+        std::array<double, kNodeCount> vals;
+        std::array<std::uint8_t, kNodeCount> needed;
+        std::array<std::uint8_t, kNodeCount> moved; // 0: in place, 1: moved, 2: on a sharp feature (value = iso)
+        std::array<Vec3f, kNodeCount> offsets;
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            const MaskLeaf& leaf = leafManager.leaf(li);
+            LeafWork& w = work[li];
+            w.origin = leaf.origin();
+            const auto& mask = leaf.getValueMask();
+            std::uint16_t running = 0;
+            for (int word = 0; word < 8; ++word) {
+                w.wordRank[std::size_t(word)] = running;
+                running = std::uint16_t(running + __builtin_popcountll(mask.template getWord<std::uint64_t>(openvdb::Index(word))));
+            }
+            for (int d = 0; d < 8; ++d) {
+                const MaskLeaf* nb = acc.probeConstLeaf(w.origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1)));
+                w.neighbor[std::size_t(d)] = nb ? indexOf.at(nb) : -1;
+            }
+            const std::size_t cells = running;
+            w.config.resize(cells);
+            w.ownedEdges.resize(cells);
+            w.vertexPrefix.resize(cells);
+
+            needed.fill(0);
+            for (auto it = mask.beginOn(); it; ++it) {
+                const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
+                for (int c = 0; c < 8; ++c) needed[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))] = 1;
+            }
+            field.sampleNodes(frame, {w.origin.x(), w.origin.y(), w.origin.z()}, {kN, kN, kN}, needed.data(), vals.data());
+            moved.fill(0);
+            if (deformation) {
+                for (int z = 0; z < kN; ++z)
+                    for (int y = 0; y < kN; ++y)
+                        for (int x = 0; x < kN; ++x) {
+                            const std::size_t i = std::size_t(nodeIndex(x, y, z));
+                            if (!needed[i]) continue;
+                            const Coord n = w.origin.offsetBy(x, y, z);
+                            openvdb::Vec3f off;
+                            const bool isMoved = offsetAcc->probeValue(n, off);
+                            if (surfaceAcc->isValueOn(n)) {
+                                moved[i] = 2;
+                                vals[i] = iso;
+                            } else if (isMoved) {
+                                moved[i] = 1;
+                            }
+                            if (isMoved) {
+                                offsets[i] = Vec3f(off.x(), off.y(), off.z());
+                                if (moved[i] == 1) vals[i] = field.value(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(offsets[i]));
+                            } else {
+                                offsets[i] = Vec3f();
+                            }
+                        }
+            }
+            auto nodePos = [&](const Vec3i& local) {
+                const Vec3d p = frame.nodeWorld(Vec3i(w.origin.x() + local.x, w.origin.y() + local.y, w.origin.z() + local.z));
+                const std::size_t i = std::size_t(nodeIndex(local.x, local.y, local.z));
+                return moved[i] ? p + Vec3d(offsets[i]) : p;
+            };
+
+            std::size_t rank = 0;
+            for (auto it = mask.beginOn(); it; ++it, ++rank) {
+                const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
+                unsigned config = 0;
+                for (int c = 0; c < 8; ++c) {
+                    const double v = vals[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))];
+                    if (isInside(v, iso, side)) config |= 1u << c;
+                }
+                w.config[rank] = std::uint8_t(config);
+                w.vertexPrefix[rank] = std::uint16_t(w.vertices.size());
+                if (config == 0 || config == 255) continue;
+                ++w.cellsWithSurface;
+                const CubeCase& cc = cubeCase(config);
+                const Coord cell = w.origin.offsetBy(x, y, z);
+                const bool boundary = onMaxFace(cell, range);
+                std::uint16_t owned = 0;
+                for (int e = 0; e < 12; ++e) {
+                    if (!(cc.edgeMask & (1u << e))) continue;
+                    const int axis = cubeEdgeAxis(e);
+                    const Vec3i eo = cubeEdgeOrigin(e);
+                    if (eo != Vec3i()) {
+                        if (!boundary) continue;
+                        if (edgeOwner(cell.offsetBy(eo.x, eo.y, eo.z), axis, range) != cell) continue;
+                    }
+                    owned |= std::uint16_t(1u << e);
+                    const Vec3i la(x + eo.x, y + eo.y, z + eo.z);
+                    Vec3i lb = la;
+                    lb[std::size_t(axis)] += 1;
+                    const std::size_t ia = std::size_t(nodeIndex(la.x, la.y, la.z));
+                    const std::size_t ib = std::size_t(nodeIndex(lb.x, lb.y, lb.z));
+                    const double va = vals[ia], vb = vals[ib];
+                    const Vec3d pa = nodePos(la), pb = nodePos(lb);
+                    // A node exactly at the iso value carries the crossing of each of its edges:
+                    // those vertices coincide and are welded into one after the second pass.
+                    const std::uint32_t local = std::uint32_t(w.vertices.size());
+                    Vec3d p;
+                    if (va == iso || vb == iso) {
+                        const bool atA = va == iso;
+                        p = atA ? pa : pb;
+                        const Vec3i ln = atA ? la : lb;
+                        w.nodeVertices.emplace_back(local, w.origin.offsetBy(ln.x, ln.y, ln.z));
+                    } else {
+                        const double t = linear && !moved[ia] && !moved[ib] ? (iso - va) / (vb - va)
+                                                                             : field.edgeCrossing(pa, pb, va, vb, iso);
+                        p = pa + (pb - pa) * t;
+                    }
+                    w.vertices.push_back(Vec3f(p));
+                    if (options.normals) {
+                        Vec3d g = field.gradient(p);
+                        const double len = std::sqrt(dot(g, g));
+                        w.normals.push_back(len > 0 && std::isfinite(len) ? Vec3f(g * (outward / len)) : Vec3f());
+                    }
+                }
+                w.ownedEdges[rank] = owned;
+                for (int l = 0; l < cc.loopCount; ++l) {
+                    if (cc.needsCentre & (1u << l)) {
+                        ++w.centreCount;
+                        w.faceCount += cc.loopSize[l];
+                        w.indexCount += 3u * cc.loopSize[l];
+                        continue;
+                    }
+                    w.faceCount += loopFaces(cc.loopSize[l], tri);
+                    w.indexCount += loopIndices(cc.loopSize[l], tri);
+                }
+            }
+            progress.advance();
+        }
+    });
+    if (options.cancel) options.cancel->check();
+    stats.leaves = leafCount;
+    for (const LeafWork& w : work) stats.cellsWithSurface += w.cellsWithSurface;
+}
+
+VertexRef LatticeSurface::Impl::vertexOf(const LeafWork& w, const Coord& cell, int e) const {
+    const int axis = cubeEdgeAxis(e);
+    const Vec3i eo = cubeEdgeOrigin(e);
+    const Coord a = cell.offsetBy(eo.x, eo.y, eo.z);
+    const Coord owner = edgeOwner(a, axis, lattice.cellRange);
+    const Coord d = (owner & ~7) - w.origin;
+    const std::int32_t ni = w.neighbor[std::size_t((d.x() >> 3) | ((d.y() >> 3) << 1) | ((d.z() >> 3) << 2))];
+    if (ni < 0) throw std::logic_error("lattice surface: the owner of an edge is not in the lattice");
+    const LeafWork& ow = work[std::size_t(ni)];
+    const MaskLeaf& ol = leafManager.leaf(std::size_t(ni));
+    const openvdb::Index off = MaskLeaf::coordToOffset(owner);
+    if (!ol.isValueOn(off)) throw std::logic_error("lattice surface: the owner cell of an edge is inactive");
+    const std::uint32_t rank = cellRank(ol, ow, off);
+    const Coord rel = a - owner;
+    const int oe = cubeEdgeIndex(axis, {rel.x(), rel.y(), rel.z()});
+    const std::uint16_t m = ow.ownedEdges[rank];
+    if (!(m & (1u << oe))) throw std::logic_error("lattice surface: an edge crossing has no vertex");
+    return {std::uint32_t(ni), std::uint32_t(ow.vertexPrefix[rank]) + std::uint32_t(__builtin_popcount(m & ((1u << oe) - 1u)))};
+}
+
+// Vertices on one iso node become one vertex (the lowest number, so the result does not depend
+// on threads); polygons lose repeated corners, those left with fewer than three are dropped,
+// and a polygon that passes a node twice is split there. Where the surface really crosses
+// itself at an iso node (a saddle: inside on opposite sides), welding would glue two sheets
+// along an edge; such nodes keep their vertices apart, as plain marching cubes would.
+// Unused vertices are removed.
+void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
+    std::vector<std::pair<std::uint32_t, Coord>> atNode; // (vertex, node), in leaf order
+    for (const LeafWork& w : work)
+        for (const auto& [local, node] : w.nodeVertices) atNode.emplace_back(w.vertexBase + local, node);
+    if (atNode.empty()) return;
+
+    std::unordered_map<Coord, std::uint32_t> representative;
+    for (const auto& [v, node] : atNode) representative.emplace(node, v);
+    std::unordered_map<Coord, bool> keepApart;
+    for (int attempt = 0;; ++attempt) {
+        std::vector<std::uint32_t> remap(mesh.points.size());
+        for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
+        std::vector<std::uint8_t> isRep(mesh.points.size(), 0);
+        std::unordered_map<std::uint32_t, Coord> nodeOfRep;
+        std::uint64_t welded = 0;
+        for (const auto& [v, node] : atNode) {
+            if (keepApart.count(node)) continue;
+            const std::uint32_t rep = representative.at(node);
+            if (rep != v) {
+                remap[v] = rep;
+                ++welded;
+                isRep[rep] = 1;
+                nodeOfRep.emplace(rep, node);
+            }
+        }
+        if (welded == 0) return;
+
+        std::vector<std::uint32_t> offsets{0}, indices;
+        offsets.reserve(mesh.offsets.size());
+        indices.reserve(mesh.indices.size());
+        std::uint64_t collapsed = 0;
+        std::vector<std::uint32_t> poly;
+        auto emitLoop = [&](auto&& self, const std::vector<std::uint32_t>& loop) -> void {
+            std::vector<std::uint32_t> clean;
+            for (std::uint32_t v : loop)
+                if (clean.empty() || clean.back() != v) clean.push_back(v);
+            while (clean.size() > 1 && clean.front() == clean.back()) clean.pop_back();
+            if (clean.size() < 3) {
+                ++collapsed;
+                return;
+            }
+            for (std::size_t i = 0; i < clean.size(); ++i)
+                for (std::size_t j = i + 1; j < clean.size(); ++j)
+                    if (clean[i] == clean[j]) {
+                        const std::vector<std::uint32_t> a(clean.begin() + std::ptrdiff_t(i), clean.begin() + std::ptrdiff_t(j));
+                        std::vector<std::uint32_t> b(clean.begin(), clean.begin() + std::ptrdiff_t(i));
+                        b.insert(b.end(), clean.begin() + std::ptrdiff_t(j), clean.end());
+                        self(self, a);
+                        self(self, b);
+                        return;
+                    }
+            indices.insert(indices.end(), clean.begin(), clean.end());
+            offsets.push_back(std::uint32_t(indices.size()));
+        };
+        for (std::size_t f = 0; f + 1 < mesh.offsets.size(); ++f) {
+            poly.clear();
+            for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) poly.push_back(remap[mesh.indices[i]]);
+            emitLoop(emitLoop, poly);
+        }
+
+        // Only edges at a welded vertex can have become shared by more than two polygons.
+        std::vector<std::pair<std::uint64_t, int>> edges; // (undirected key, direction)
+        for (std::size_t f = 0; f + 1 < offsets.size(); ++f)
+            for (std::uint32_t i = offsets[f]; i < offsets[f + 1]; ++i) {
+                const std::uint32_t a = indices[i], b = indices[i + 1 < offsets[f + 1] ? i + 1 : offsets[f]];
+                if (!isRep[a] && !isRep[b]) continue;
+                edges.emplace_back((std::uint64_t(std::min(a, b)) << 32) | std::max(a, b), a < b ? 1 : -1);
+            }
+        std::sort(edges.begin(), edges.end());
+        bool bad = false;
+        for (std::size_t i = 0; i < edges.size();) {
+            std::size_t j = i;
+            int sum = 0;
+            while (j < edges.size() && edges[j].first == edges[i].first) sum += edges[j++].second;
+            if (j - i > 2 || (j - i == 2 && sum != 0)) {
+                for (const std::uint32_t v : {std::uint32_t(edges[i].first >> 32), std::uint32_t(edges[i].first)})
+                    if (isRep[v]) keepApart.emplace(nodeOfRep.at(v), true);
+                bad = true;
+            }
+            i = j;
+        }
+        if (bad && attempt < 8) continue;
+        if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
+
+        std::vector<std::uint32_t> newId(mesh.points.size(), UINT32_MAX);
+        for (std::uint32_t v : indices) newId[v] = 0;
+        std::uint32_t next = 0;
+        std::vector<Vec3f> points;
+        points.reserve(mesh.points.size() - welded);
+        for (std::size_t v = 0; v < newId.size(); ++v)
+            if (newId[v] == 0) {
+                newId[v] = next++;
+                points.push_back(mesh.points[v]);
+            }
+        for (std::uint32_t& v : indices) v = newId[v];
+        mesh.points = std::move(points);
+        mesh.offsets = std::move(offsets);
+        mesh.indices = std::move(indices);
+        stats.weldedVertices = welded;
+        stats.collapsedPolygons = collapsed;
+        return;
+    }
+}
+
+LatticeSurface::LatticeSurface(const Field& field, const Lattice& lattice, const LatticeDeformation* deformation,
+                               const SurfaceOptions& options)
+    : mImpl(std::make_unique<Impl>(field, lattice, deformation, options)) {
+    mImpl->firstPass();
+    mImpl->stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - mImpl->start).count();
+}
+
+LatticeSurface::~LatticeSurface() = default;
+
+const SurfaceStats& LatticeSurface::stats() const { return mImpl->stats; }
+
+void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn) const {
+    const Impl& im = *mImpl;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::array<Vec3f, 12> pos, nrm;
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            const MaskLeaf& leaf = im.leafManager.leaf(li);
+            const LeafWork& w = im.work[li];
+            std::size_t rank = 0;
+            for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
+                const unsigned config = w.config[rank];
+                if (config == 0 || config == 255) continue;
+                const int off = int(it.pos());
+                CellCrossings c;
+                c.cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);
+                c.config = config;
+                const CubeCase& cc = cubeCase(config);
+                for (int e = 0; e < 12; ++e) {
+                    if (!(cc.edgeMask & (1u << e))) continue;
+                    const VertexRef v = im.vertexOf(w, c.cell, e);
+                    pos[std::size_t(e)] = im.work[v.leaf].vertices[v.local];
+                    if (im.options.normals) nrm[std::size_t(e)] = im.work[v.leaf].normals[v.local];
+                }
+                c.position = pos.data();
+                c.normal = im.options.normals ? nrm.data() : nullptr;
+                fn(c);
+            }
+        }
+    });
+    if (im.options.cancel) im.options.cancel->check();
+}
+
+Mesh LatticeSurface::mesh() {
+    Impl& im = *mImpl;
+    if (im.meshTaken) throw std::logic_error("LatticeSurface::mesh called twice");
+    im.meshTaken = true;
+    const auto start = std::chrono::steady_clock::now();
+    const std::size_t leafCount = im.work.size();
+    const bool tri = im.options.triangulate;
+
+    // Prefix sums, in leaf order: this fixes every vertex and polygon number.
+    std::uint32_t vtotal = 0, ftotal = 0, itotal = 0;
+    for (LeafWork& w : im.work) {
+        w.vertexBase = vtotal;
+        w.faceBase = ftotal;
+        w.indexBase = itotal;
+        const std::uint64_t nv = std::uint64_t(vtotal) + w.vertices.size() + w.centreCount;
+        const std::uint64_t ni = std::uint64_t(itotal) + w.indexCount;
+        if (nv > 0xffffffffull || ni > 0xffffffffull) throw std::runtime_error("mesh too large for 32-bit indices");
+        vtotal = std::uint32_t(nv);
+        ftotal += w.faceCount;
+        itotal = std::uint32_t(ni);
+    }
+
+    Mesh mesh;
+    mesh.points.resize(vtotal);
+    mesh.offsets.assign(std::size_t(ftotal) + 1, 0);
+    mesh.indices.resize(itotal);
+
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t li = r.begin(); li < r.end(); ++li)
+            std::copy(im.work[li].vertices.begin(), im.work[li].vertices.end(), mesh.points.begin() + im.work[li].vertexBase);
+    });
+
+    Progress progress("surface polygons", leafCount, im.options.cancel);
+    // Second pass: polygons with global vertex numbers (all vertices are in place: quads may be
+    // split along their shorter diagonal).
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 8), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            const MaskLeaf& leaf = im.leafManager.leaf(li);
+            const LeafWork& w = im.work[li];
+            std::uint32_t f = w.faceBase, idx = w.indexBase;
+            std::uint32_t nextCentre = w.vertexBase + std::uint32_t(w.vertices.size());
+            std::size_t rank = 0;
+            for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
+                const unsigned config = w.config[rank];
+                if (config == 0 || config == 255) continue;
+                const int off = int(it.pos());
+                const Coord cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);
+                const CubeCase& cc = cubeCase(config);
+                std::array<std::uint32_t, 12> ids;
+                for (int l = 0, k0 = 0; l < cc.loopCount; k0 += cc.loopSize[l], ++l) {
+                    const std::uint32_t k = cc.loopSize[l];
+                    for (std::uint32_t i = 0; i < k; ++i) {
+                        const VertexRef v = im.vertexOf(w, cell, cc.edges[k0 + int(i)]);
+                        ids[i] = im.work[v.leaf].vertexBase + v.local;
+                    }
+                    auto emit = [&](std::initializer_list<std::uint32_t> vs) {
+                        for (std::uint32_t v : vs) mesh.indices[idx++] = v;
+                        mesh.offsets[++f] = idx;
+                    };
+                    if (cc.needsCentre & (1u << l)) {
+                        // Only this leaf writes its centre vertices; the loop's edge vertices are all in place.
+                        Vec3d c;
+                        for (std::uint32_t i = 0; i < k; ++i) c += Vec3d(mesh.points[ids[i]]);
+                        const std::uint32_t centre = nextCentre++;
+                        mesh.points[centre] = Vec3f(c / double(k));
+                        for (std::uint32_t i = 0; i < k; ++i) emit({ids[i], ids[(i + 1) % k], centre});
+                    } else if (k == 3) emit({ids[0], ids[1], ids[2]});
+                    else if (k == 4 && !tri) emit({ids[0], ids[1], ids[2], ids[3]});
+                    else if (k == 4) {
+                        const auto& P = mesh.points;
+                        const double d02 = dot(Vec3d(P[ids[0]] - P[ids[2]]), Vec3d(P[ids[0]] - P[ids[2]]));
+                        const double d13 = dot(Vec3d(P[ids[1]] - P[ids[3]]), Vec3d(P[ids[1]] - P[ids[3]]));
+                        if (d02 <= d13) { emit({ids[0], ids[1], ids[2]}); emit({ids[0], ids[2], ids[3]}); }
+                        else { emit({ids[0], ids[1], ids[3]}); emit({ids[1], ids[2], ids[3]}); }
+                    } else {
+                        for (std::uint32_t i = 1; i + 1 < k; ++i) emit({ids[0], ids[i], ids[i + 1]});
+                    }
+                }
+            }
+            progress.advance();
+        }
+    });
+    if (im.options.cancel) im.options.cancel->check();
+    im.weldNodeVertices(mesh);
+    im.stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return mesh;
+}
+
+Mesh marchingCubes(const Field& field, const Lattice& lattice, const SurfaceOptions& options, SurfaceStats* stats) {
+    LatticeSurface surface(field, lattice, nullptr, options);
+    Mesh mesh = surface.mesh();
+    if (stats) *stats = surface.stats();
+    return mesh;
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,75 @@
+// Marching cubes on a sparse, possibly deformed, lattice: the surface of a Field over the active
+// cells of a Lattice whose nodes may have moved (LatticeDeformation). Parallel over the
+// lattice's VDB leaves (one leaf = one TBB task). Each lattice edge with a crossing gets exactly
+// one vertex, computed by the leaf of the cell that owns the edge, so vertices are shared between
+// leaves without duplicates; vertices and polygons are numbered leaf by leaf in tree order, so
+// the output does not depend on the number of threads.
+//
+// Crossings: where the field is linear along undeformed lattice edges (a grid at its own voxel
+// size) by linear interpolation, which is then exact; otherwise Field::edgeCrossing on the true
+// field along the (deformed) edge. A node whose value is exactly the iso value (data, or a node
+// placed on a sharp feature) carries the crossings of all its edges; those vertices are welded
+// into one and the polygons that collapse are removed, so there are no slivers and no cracks.
+#pragma once
+#include "vdbsurf/field/field.h"
+#include "vdbsurf/lattice/lattice.h"
+#include "vdbsurf/mesh/mesh.h"
+
+#include <functional>
+#include <memory>
+
+namespace vdbsurf {
+
+class CancelToken;
+struct LatticeDeformation;
+
+struct SurfaceOptions {
+    double iso = 0;
+    bool triangulate = false; // split quads (shorter diagonal): triangles only
+    bool normals = false;     // also compute the unit outward normal at every crossing
+    const CancelToken* cancel = nullptr;
+};
+
+struct SurfaceStats {
+    std::uint64_t cellsWithSurface = 0;
+    std::uint64_t leaves = 0;
+    std::uint64_t weldedVertices = 0;
+    std::uint64_t collapsedPolygons = 0;
+    double seconds = 0;
+};
+
+// The crossings on the edges of one cell with surface: position and (if asked) outward unit
+// normal per cube edge (cube_table.h numbering); only edges in cubeCase(config).edgeMask are set.
+struct CellCrossings {
+    openvdb::Coord cell;
+    unsigned config = 0;
+    const Vec3f* position = nullptr; // [12]
+    const Vec3f* normal = nullptr;   // [12], null unless SurfaceOptions::normals
+};
+
+class LatticeSurface {
+public:
+    // The lattice and deformation must outlive this object.
+    LatticeSurface(const Field& field, const Lattice& lattice, const LatticeDeformation* deformation,
+                   const SurfaceOptions& options);
+    ~LatticeSurface();
+    LatticeSurface(const LatticeSurface&) = delete;
+    LatticeSurface& operator=(const LatticeSurface&) = delete;
+
+    // Calls fn for every cell with surface, in parallel (fn must be thread-safe).
+    void forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn) const;
+
+    // The mesh: polygons oriented with normals from inside to outside.
+    Mesh mesh();
+    const SurfaceStats& stats() const;
+
+    struct Impl;
+
+private:
+    std::unique_ptr<Impl> mImpl;
+};
+
+// Plain marching cubes on an undeformed lattice, as one call.
+Mesh marchingCubes(const Field& field, const Lattice& lattice, const SurfaceOptions& options, SurfaceStats* stats = nullptr);
+
+} // namespace vdbsurf
