@@ -5,7 +5,9 @@
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/threads.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/lattice/lattice.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/field/grid_field.h"
 #include "vdbsurf/mesh/mesh_io.h"
@@ -33,10 +35,11 @@ std::string num(double v) {
 }
 
 struct MeshOptions {
-    std::string input, output, expr, bbox, grid, stats, method = "mc", inside;
+    std::string input, output, expr, bbox, grid, stats, method = "dmc", inside, latticeOut;
     std::optional<double> iso, voxelSize;
-    int threads = 0;
-    bool triangles = false;
+    int threads = 0, searchSteps = 5;
+    double sharpEdge = 0.9, sharpCorner = 0.7;
+    bool triangles = false, noThin = false, noSharp = false;
 };
 
 void writeJsonFile(const std::string& path, const nlohmann::json& j) {
@@ -63,6 +66,13 @@ void runMesh(const MeshOptions& o) {
         throw Error(o.output, "unsupported output format; use .obj, .ply or .vdb");
     checkWritableTarget(o.output);
     if (!o.stats.empty()) checkWritableTarget(o.stats);
+    const bool dmc = o.method == "dmc";
+    if (!dmc && (o.noThin || o.noSharp || !o.latticeOut.empty()))
+        throw Error(o.noThin ? "--no-thin" : o.noSharp ? "--no-sharp" : "--lattice-out", "applies only to --method dmc");
+    if (!o.latticeOut.empty()) {
+        if (meshFormatOf(o.latticeOut) != MeshFormat::Vdb) throw Error(o.latticeOut, "--lattice-out must name a .vdb file");
+        checkWritableTarget(o.latticeOut);
+    }
 
     ThreadLimit threads(o.threads);
     std::optional<Inside> inside;
@@ -88,11 +98,26 @@ void runMesh(const MeshOptions& o) {
     req.iso = o.iso;
     req.voxelSize = o.voxelSize;
     req.triangulate = o.triangles;
+    req.method = dmc ? MeshMethod::Dmc : MeshMethod::MarchingCubes;
+    req.thin = !o.noThin;
+    req.sharp = !o.noSharp;
+    req.searchSteps = o.searchSteps;
+    req.sharpEdge = o.sharpEdge;
+    req.sharpCorner = o.sharpCorner;
     req.cancel = &processCancelToken();
+    if (!o.latticeOut.empty())
+        req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation) {
+            writeLatticeVdb(o.latticeOut, lattice, deformation,
+                            {{"vdbsurf_version", VDBSURF_VERSION}, {"vdbsurf_source", source}, {"vdbsurf_content", "DMC deformed lattice"}});
+            note("wrote " + o.latticeOut + ": the deformed lattice (" + std::to_string(deformation.movedNodes()) + " nodes moved)");
+        };
     MeshReport rep;
     Mesh mesh = meshField(*field, req, rep);
     note("iso " + num(rep.iso) + " (" + rep.isoReason + "), lattice spacing " + num(rep.voxelSize) + " (" + rep.voxelSizeReason +
          ")");
+    if (dmc)
+        note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts, " + std::to_string(rep.nodesOnCorners) +
+             " onto corners, " + std::to_string(rep.nodesOnEdges) + " onto edges");
 
     const auto tWrite = Clock::now();
     const std::vector<std::string> provenance = {
@@ -135,9 +160,26 @@ void runMesh(const MeshOptions& o) {
                            {"cells_visited", rep.cellsExamined},
                            {"cells_active", rep.cellsActive},
                            {"cells_with_surface", rep.cellsWithSurface}}},
+                         {"dmc",
+                          {{"thin_search", !o.noThin && dmc},
+                           {"sharp_features", !o.noSharp && dmc},
+                           {"search_steps", o.searchSteps},
+                           {"hidden_cells", rep.hiddenCells},
+                           {"thin_candidates", rep.thinCandidates},
+                           {"thin_samples", rep.thinSamples},
+                           {"nodes_moved_thin", rep.thinNodesMoved},
+                           {"sharp_edge_cells", rep.sharpEdgeCells},
+                           {"sharp_corner_cells", rep.sharpCornerCells},
+                           {"sharp_rejected", rep.sharpRejected},
+                           {"nodes_on_edges", rep.nodesOnEdges},
+                           {"nodes_on_corners", rep.nodesOnCorners},
+                           {"welded_vertices", rep.weldedVertices},
+                           {"collapsed_polygons", rep.collapsedPolygons}}},
                          {"seconds",
                           {{"read", secondsRead},
                            {"lattice", rep.secondsLattice},
+                           {"thin_search", rep.secondsThin},
+                           {"sharp_features", rep.secondsSharp},
                            {"mesh", rep.secondsMesh},
                            {"write", secondsWrite},
                            {"total", since(t0)}}}};
@@ -157,7 +199,17 @@ Action addMeshCommand(CLI::App& app) {
     sub->add_option("--grid", o->grid, "Grid name (default: the first float/double grid)");
     sub->add_option("--iso", o->iso, "Iso value (default 0 for level sets and formulas, 0.5 for fog)");
     sub->add_option("--voxel-size", o->voxelSize, "Lattice spacing in world units (default: the grid's voxel size)");
-    sub->add_option("--method", o->method, "Mesher: mc (marching cubes)")->check(CLI::IsMember({"mc"}));
+    sub->add_option("--method", o->method, "Mesher: dmc (Deformed Marching Cubes, default) or mc (plain marching cubes)")
+        ->check(CLI::IsMember({"dmc", "mc"}));
+    sub->add_option("--search-steps", o->searchSteps, "DMC thin search: parts at least 1/k of a cell wide are kept (default 5)")
+        ->check(CLI::Range(1, 64));
+    sub->add_option("--sharp-edge", o->sharpEdge, "DMC: normals whose cosine is below this make an edge (default 0.9)")
+        ->check(CLI::Range(-1.0, 1.0));
+    sub->add_option("--sharp-corner", o->sharpCorner, "DMC: a third normal this aligned with the edge makes a corner (default 0.7)")
+        ->check(CLI::Range(0.0, 1.0));
+    sub->add_flag("--no-thin", o->noThin, "DMC: skip the thin-part search");
+    sub->add_flag("--no-sharp", o->noSharp, "DMC: skip sharp edges and corners");
+    sub->add_option("--lattice-out", o->latticeOut, "DMC: write the deformed lattice (Vec3f node offsets) to this .vdb");
     sub->add_option("--inside", o->inside, "Override which side is inside: below or above the iso value")
         ->check(CLI::IsMember({"below", "above"}));
     sub->add_option("--threads", o->threads, "Worker threads (0: all cores)");

@@ -1,8 +1,10 @@
 // The deformed lattice of Deformed Marching Cubes: which nodes moved, where to (an offset in
 // world units, always inside the node's own cell Ω = node + [-h/2, h/2)^3, so deformed cells
-// never fold), and which nodes were placed on a sharp feature of the surface (their value is
-// taken to be the iso value itself). Sparse VDB trees in lattice node index space: the offsets
-// tree is what --lattice-out writes.
+// never fold), and which nodes were placed on a sharp feature of the surface. A node on a feature
+// takes the iso value itself but keeps the side it had before it moved (insideOnSurface), so
+// the cell cases, and with them the mesh's topology, do not change: only the crossings on its
+// edges move onto it. Sparse VDB trees in lattice node index space: the offsets tree is what
+// --lattice-out writes.
 #pragma once
 #include "vdbsurf/core/lattice_frame.h"
 
@@ -18,6 +20,7 @@ struct Lattice;
 struct LatticeDeformation {
     openvdb::Vec3STree::Ptr offsets = std::make_shared<openvdb::Vec3STree>(openvdb::Vec3f(0.0f));
     openvdb::MaskTree::Ptr onSurface = std::make_shared<openvdb::MaskTree>(false);
+    openvdb::MaskTree::Ptr insideOnSurface = std::make_shared<openvdb::MaskTree>(false); // subset of onSurface
 
     bool empty() const { return offsets->empty() && onSurface->empty(); }
     std::uint64_t movedNodes() const { return offsets->activeVoxelCount(); }

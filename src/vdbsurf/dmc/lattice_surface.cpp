@@ -116,14 +116,16 @@ void LatticeSurface::Impl::firstPass() {
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 8), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*lattice.cells);
         std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>> offsetAcc;
-        std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>> surfaceAcc;
+        std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>> surfaceAcc, insideAcc;
         if (deformation) {
+            insideAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>>(*deformation->insideOnSurface);
             offsetAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>>(*deformation->offsets);
             surfaceAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>>(*deformation->onSurface);
         }
         std::array<double, kNodeCount> vals;
         std::array<std::uint8_t, kNodeCount> needed;
-        std::array<std::uint8_t, kNodeCount> moved; // 0: in place, 1: moved, 2: on a sharp feature (value = iso)
+        // 0: in place, 1: moved, 2: on a sharp feature (value = iso) counted outside, 3: the same counted inside
+        std::array<std::uint8_t, kNodeCount> moved;
         std::array<Vec3f, kNodeCount> offsets;
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
             const MaskLeaf& leaf = leafManager.leaf(li);
@@ -161,7 +163,7 @@ void LatticeSurface::Impl::firstPass() {
                             openvdb::Vec3f off;
                             const bool isMoved = offsetAcc->probeValue(n, off);
                             if (surfaceAcc->isValueOn(n)) {
-                                moved[i] = 2;
+                                moved[i] = insideAcc->isValueOn(n) ? 3 : 2;
                                 vals[i] = iso;
                             } else if (isMoved) {
                                 moved[i] = 1;
@@ -185,8 +187,8 @@ void LatticeSurface::Impl::firstPass() {
                 const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
                 unsigned config = 0;
                 for (int c = 0; c < 8; ++c) {
-                    const double v = vals[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))];
-                    if (isInside(v, iso, side)) config |= 1u << c;
+                    const std::size_t i = std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)));
+                    if (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side)) config |= 1u << c;
                 }
                 w.config[rank] = std::uint8_t(config);
                 w.vertexPrefix[rank] = std::uint16_t(w.vertices.size());
@@ -423,6 +425,59 @@ void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCross
         }
     });
     if (im.options.cancel) im.options.cancel->check();
+}
+
+std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformation& deformation) {
+    Impl& im = *mImpl;
+    if (im.meshTaken) throw std::logic_error("LatticeSurface: crossings moved after the mesh was taken");
+    if (deformation.onSurface->empty()) return 0;
+    const LatticeFrame& frame = im.lattice.frame;
+    std::vector<std::uint64_t> movedPerLeaf(im.work.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> onSurface(*deformation.onSurface);
+        openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false> offsets(*deformation.offsets);
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            LeafWork& w = im.work[li];
+            if (w.vertices.empty()) continue;
+            // Only nodes of this leaf's block (origin .. origin + 8) can be edge ends here.
+            bool any = false;
+            for (int d = 0; d < 8 && !any; ++d)
+                any = onSurface.probeConstLeaf(w.origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1))) != nullptr;
+            if (!any) continue;
+            std::vector<std::uint32_t> atDataNode;
+            for (const auto& nv : w.nodeVertices) atDataNode.push_back(nv.first);
+            std::sort(atDataNode.begin(), atDataNode.end());
+            const MaskLeaf& leaf = im.leafManager.leaf(li);
+            std::size_t rank = 0;
+            for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
+                const std::uint16_t owned = w.ownedEdges[rank];
+                if (!owned || w.config[rank] == 0 || w.config[rank] == 255) continue;
+                const int off = int(it.pos());
+                const Coord cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);
+                std::uint32_t local = w.vertexPrefix[rank];
+                for (int e = 0; e < 12; ++e) {
+                    if (!(owned & (1u << e))) continue;
+                    const std::uint32_t v = local++;
+                    if (std::binary_search(atDataNode.begin(), atDataNode.end(), v)) continue;
+                    const Vec3i eo = cubeEdgeOrigin(e);
+                    const Coord a = cell.offsetBy(eo.x, eo.y, eo.z);
+                    Coord b = a;
+                    b[cubeEdgeAxis(e)] += 1;
+                    const Coord* n = onSurface.isValueOn(a) ? &a : (onSurface.isValueOn(b) ? &b : nullptr);
+                    if (!n) continue;
+                    const openvdb::Vec3f o = offsets.getValue(*n);
+                    w.vertices[v] = Vec3f(frame.nodeWorld(Vec3i(n->x(), n->y(), n->z())) + Vec3d(o.x(), o.y(), o.z()));
+                    w.nodeVertices.emplace_back(v, *n);
+                    ++movedPerLeaf[li];
+                }
+            }
+            std::sort(w.nodeVertices.begin(), w.nodeVertices.end(),
+                      [](const auto& x, const auto& y) { return x.first < y.first; });
+        }
+    });
+    std::uint64_t total = 0;
+    for (std::uint64_t m : movedPerLeaf) total += m;
+    return total;
 }
 
 Mesh LatticeSurface::mesh() {

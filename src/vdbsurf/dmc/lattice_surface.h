@@ -59,6 +59,11 @@ public:
     // Calls fn for every cell with surface, in parallel (fn must be thread-safe).
     void forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn) const;
 
+    // After nodes were placed on sharp features (deformation.onSurface; each keeps its side, so
+    // no cell case changes): the crossing on every edge of such a node becomes the node itself.
+    // Returns how many crossings moved.
+    std::uint64_t moveCrossingsToFeatureNodes(const LatticeDeformation& deformation);
+
     // The mesh: polygons oriented with normals from inside to outside.
     Mesh mesh();
     const SurfaceStats& stats() const;

@@ -2,9 +2,13 @@
 
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
+#include "vdbsurf/dmc/sharp_features.h"
+#include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
+#include <chrono>
 #include <cmath>
 #include <sstream>
 
@@ -13,6 +17,7 @@ namespace vdbsurf {
 const char* methodName(MeshMethod m) {
     switch (m) {
     case MeshMethod::MarchingCubes: return "mc";
+    case MeshMethod::Dmc: return "dmc";
     }
     return "?";
 }
@@ -48,8 +53,11 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     }
     report.frame = field.naturalFrame(report.voxelSize);
 
+    const bool dmc = request.method == MeshMethod::Dmc;
     const openvdb::CoordBBox range = latticeCellRange(field, report.frame);
-    const Lattice lattice = buildLattice(field, report.frame, range, report.iso, CellTest::CornerSigns, request.cancel);
+    // DMC needs every cell the surface may pass, also those whose corners miss it.
+    Lattice lattice = buildLattice(field, report.frame, range, report.iso,
+                                   dmc && request.thin ? CellTest::Bounds : CellTest::CornerSigns, request.cancel);
     report.upperNodesTested = lattice.stats.upperNodesTested;
     report.leafBlocksTested = lattice.stats.leafBlocksTested;
     report.leafBlocksVisited = lattice.stats.leafBlocksVisited;
@@ -57,14 +65,51 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.cellsActive = lattice.stats.cellsActive;
     report.secondsLattice = lattice.stats.seconds;
 
-    SurfaceOptions mc;
-    mc.iso = report.iso;
-    mc.triangulate = request.triangulate;
-    mc.cancel = request.cancel;
-    SurfaceStats mcStats;
-    Mesh mesh = marchingCubes(field, lattice, mc, &mcStats);
-    report.cellsWithSurface = mcStats.cellsWithSurface;
-    report.secondsMesh = mcStats.seconds;
+    LatticeDeformation deformation;
+    if (dmc && request.thin) {
+        ThinSearchOptions to;
+        to.iso = report.iso;
+        to.steps = request.searchSteps;
+        to.cancel = request.cancel;
+        ThinSearchStats ts;
+        thinSearch(field, lattice, to, deformation, &ts);
+        activateCellsAroundMovedNodes(lattice, deformation);
+        report.hiddenCells = ts.hiddenCells;
+        report.thinCandidates = ts.candidates;
+        report.thinSamples = ts.samples;
+        report.thinNodesMoved = ts.nodesMoved;
+        report.secondsThin = ts.seconds;
+    }
+
+    SurfaceOptions so;
+    so.iso = report.iso;
+    so.triangulate = request.triangulate;
+    so.normals = dmc && request.sharp;
+    so.cancel = request.cancel;
+    LatticeSurface surface(field, lattice, &deformation, so);
+    if (dmc && request.sharp) {
+        SharpOptions sh;
+        sh.iso = report.iso;
+        sh.edgeThreshold = request.sharpEdge;
+        sh.cornerThreshold = request.sharpCorner;
+        sh.cancel = request.cancel;
+        SharpStats ss;
+        placeSharpFeatures(field, lattice, surface, sh, deformation, &ss);
+        const auto t = std::chrono::steady_clock::now();
+        surface.moveCrossingsToFeatureNodes(deformation);
+        report.sharpEdgeCells = ss.edgeCells;
+        report.sharpCornerCells = ss.cornerCells;
+        report.sharpRejected = ss.rejected;
+        report.nodesOnEdges = ss.nodesOnEdges;
+        report.nodesOnCorners = ss.nodesOnCorners;
+        report.secondsSharp = ss.seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    }
+    if (request.deformedLattice) request.deformedLattice(lattice, deformation);
+    Mesh mesh = surface.mesh();
+    report.cellsWithSurface = surface.stats().cellsWithSurface;
+    report.weldedVertices = surface.stats().weldedVertices;
+    report.collapsedPolygons = surface.stats().collapsedPolygons;
+    report.secondsMesh = surface.stats().seconds;
 
     if (mesh.empty()) {
         const Interval r = field.bounds(field.domain());

@@ -7,22 +7,34 @@
 #include "vdbsurf/mesh/mesh.h"
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 
 namespace vdbsurf {
 
 class CancelToken;
+struct Lattice;
+struct LatticeDeformation;
 
-enum class MeshMethod { MarchingCubes };
+// Dmc: Deformed Marching Cubes (thin search, sharp features, marching cubes on the deformed
+// lattice); MarchingCubes: plain marching cubes on the lattice's corner signs.
+enum class MeshMethod { MarchingCubes, Dmc };
 
 const char* methodName(MeshMethod m);
 
 struct MeshRequest {
     std::optional<double> iso;       // default: Field::defaultIso()
     std::optional<double> voxelSize; // lattice spacing in world units; default: the field's own
-    MeshMethod method = MeshMethod::MarchingCubes;
+    MeshMethod method = MeshMethod::Dmc;
     bool triangulate = false;
+    // Deformed Marching Cubes only.
+    bool thin = true;  // search for parts thinner than a cell
+    bool sharp = true; // place nodes on sharp edges and corners
+    int searchSteps = 5;
+    double sharpEdge = 0.9, sharpCorner = 0.7;
+    // Called with the deformed lattice before the final surface is built (--lattice-out).
+    std::function<void(const Lattice&, const LatticeDeformation&)> deformedLattice;
     const CancelToken* cancel = nullptr;
 };
 
@@ -34,7 +46,10 @@ struct MeshReport {
     LatticeFrame frame;
     std::uint64_t upperNodesTested = 0, leafBlocksTested = 0, leafBlocksVisited = 0;
     std::uint64_t cellsExamined = 0, cellsActive = 0, cellsWithSurface = 0;
-    double secondsLattice = 0, secondsMesh = 0;
+    std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;
+    std::uint64_t sharpEdgeCells = 0, sharpCornerCells = 0, sharpRejected = 0, nodesOnEdges = 0, nodesOnCorners = 0;
+    std::uint64_t weldedVertices = 0, collapsedPolygons = 0;
+    double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0;
     std::size_t vertices = 0, triangles = 0, quads = 0, otherPolygons = 0;
 };
 

@@ -1,0 +1,210 @@
+#include "vdbsurf/dmc/sharp_features.h"
+
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/dmc/cube_table.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/dmc/lattice_surface.h"
+#include "vdbsurf/lattice/lattice.h"
+
+#include <Eigen/Dense>
+#include <tbb/enumerable_thread_specific.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <tuple>
+
+namespace vdbsurf {
+
+using openvdb::Coord;
+
+namespace {
+
+// Normals closer to opposite than this (|n_a × n_b| below it) belong to two sheets of a thin
+// part rather than to the two faces of an edge.
+constexpr double kMinSine = 0.25;
+// A feature point farther than this from the surface (in cells, estimated as |f - iso| / |∇f|)
+// is an artefact of curvature or of sampling, not a feature.
+constexpr double kMaxSurfaceDistance = 0.2;
+
+struct Proposal {
+    Coord node;
+    int kind = 0; // 0 corner, 1 edge: corners win
+    double distance = 0;
+    Coord cell;
+    Vec3d point;
+    bool inside = false; // the node's side before it moves
+    bool operator<(const Proposal& o) const {
+        return std::tie(node, kind, distance, cell) < std::tie(o.node, o.kind, o.distance, o.cell);
+    }
+};
+
+inline Vec3d toVec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
+inline Eigen::Vector3d toEigen(const Vec3d& v) { return {v.x, v.y, v.z}; }
+
+// The point where the three planes (c_i, n_i) meet, if the system is well conditioned.
+bool intersectPlanes(const Vec3d n[3], const double rhs[3], Vec3d& out) {
+    Eigen::Matrix3d A;
+    for (int i = 0; i < 3; ++i) A.row(i) = toEigen(n[i]).transpose();
+    Eigen::FullPivLU<Eigen::Matrix3d> lu(A);
+    // Unit normals: the determinant is the volume they span; below this the point runs off.
+    if (std::fabs(A.determinant()) < 1e-3) return false;
+    out = toVec(lu.solve(Eigen::Vector3d(rhs[0], rhs[1], rhs[2])));
+    return std::isfinite(out.x) && std::isfinite(out.y) && std::isfinite(out.z);
+}
+
+Coord nearestNode(const LatticeFrame& frame, const Vec3d& p) {
+    const Vec3d q = (p - frame.origin) / frame.h;
+    return Coord(int(std::floor(q.x + 0.5)), int(std::floor(q.y + 0.5)), int(std::floor(q.z + 0.5)));
+}
+
+bool isCornerOf(const Coord& node, const Coord& cell) {
+    const Coord d = node - cell;
+    return d.x() >= 0 && d.x() <= 1 && d.y() >= 0 && d.y() <= 1 && d.z() >= 0 && d.z() <= 1;
+}
+
+} // namespace
+
+void placeSharpFeatures(const Field& field, const Lattice& lattice, const LatticeSurface& surface, const SharpOptions& options,
+                        LatticeDeformation& deformation, SharpStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    if (!(options.edgeThreshold >= -1 && options.edgeThreshold <= 1))
+        throw Error("--sharp-edge", "must be a cosine between -1 and 1");
+    if (!(options.cornerThreshold >= 0 && options.cornerThreshold <= 1))
+        throw Error("--sharp-corner", "must be between 0 and 1");
+    const LatticeFrame& frame = lattice.frame;
+    const double h = frame.h, iso = options.iso;
+    const Inside side = field.inside();
+
+    struct Local {
+        std::vector<Proposal> proposals;
+        std::uint64_t edgeCells = 0, cornerCells = 0, rejected = 0;
+    };
+    tbb::enumerable_thread_specific<Local> locals;
+    auto nearSurface = [&](const Vec3d& p) {
+        const Vec3d g = field.gradient(p);
+        const double len = length(g);
+        if (!(len > 0) || !std::isfinite(len)) return false;
+        return std::fabs(field.value(p) - iso) <= kMaxSurfaceDistance * h * len;
+    };
+
+    surface.forEachSurfaceCell([&](const CellCrossings& cc) {
+        Local& local = locals.local();
+        Vec3d c[12], n[12];
+        int count = 0;
+        const CubeCase& cube = cubeCase(cc.config);
+        for (int e = 0; e < 12; ++e) {
+            if (!(cube.edgeMask & (1u << e))) continue;
+            const Vec3d ne(cc.normal[e]);
+            if (dot(ne, ne) < 0.5) continue; // no usable gradient there
+            c[count] = Vec3d(cc.position[e]);
+            n[count++] = ne;
+        }
+        int a = -1, b = -1;
+        double theta = options.edgeThreshold;
+        for (int i = 0; i < count; ++i)
+            for (int j = i + 1; j < count; ++j) {
+                const double d = dot(n[i], n[j]);
+                if (d < theta && length(cross(n[i], n[j])) >= kMinSine) theta = d, a = i, b = j;
+            }
+        if (a < 0) return;
+        const Vec3d edgeDir = normalized(cross(n[a], n[b]));
+        int third = -1;
+        double phi = options.cornerThreshold;
+        for (int i = 0; i < count; ++i) {
+            if (i == a || i == b) continue;
+            const double d = std::fabs(dot(n[i], edgeDir));
+            if (d > phi) phi = d, third = i;
+        }
+        Proposal p;
+        p.cell = cc.cell;
+        if (third >= 0) {
+            ++local.cornerCells;
+            const Vec3d planes[3] = {n[a], n[b], n[third]};
+            const double rhs[3] = {dot(n[a], c[a]), dot(n[b], c[b]), dot(n[third], c[third])};
+            Vec3d corner;
+            if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner)) {
+                ++local.rejected;
+                return;
+            }
+            p.kind = 0;
+            p.node = nearestNode(frame, corner);
+            p.point = corner;
+            p.distance = length(corner - frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z())));
+        } else {
+            ++local.edgeCells;
+            Vec3d mean;
+            for (int i = 0; i < count; ++i) mean += c[i];
+            mean = mean / double(count);
+            const Vec3d planes[3] = {n[a], n[b], edgeDir};
+            const double rhs[3] = {dot(n[a], c[a]), dot(n[b], c[b]), dot(edgeDir, mean)};
+            Vec3d onLine;
+            if (!intersectPlanes(planes, rhs, onLine)) {
+                ++local.rejected;
+                return;
+            }
+            double best = INFINITY;
+            for (int k = 0; k < 8; ++k) {
+                const Coord node = cc.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+                const Vec3d rest = frame.nodeWorld(Vec3i(node.x(), node.y(), node.z()));
+                const Vec3d q = onLine + edgeDir * dot(edgeDir, rest - onLine);
+                const double dist = length(q - rest);
+                if (nearestNode(frame, q) != node || dist >= best) continue;
+                best = dist;
+                p.node = node;
+                p.point = q;
+                p.distance = dist;
+            }
+            if (!(best < INFINITY) || !nearSurface(p.point)) {
+                ++local.rejected;
+                return;
+            }
+            p.kind = 1;
+        }
+        const Coord d = p.node - cc.cell;
+        p.inside = (cc.config >> (d.x() + 2 * d.y() + 4 * d.z())) & 1u;
+        local.proposals.push_back(p);
+    });
+
+    SharpStats out;
+    std::vector<Proposal> all;
+    for (Local& l : locals) {
+        all.insert(all.end(), l.proposals.begin(), l.proposals.end());
+        out.edgeCells += l.edgeCells;
+        out.cornerCells += l.cornerCells;
+        out.rejected += l.rejected;
+    }
+    std::sort(all.begin(), all.end());
+
+    openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface);
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
+    double around[27];
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        if (i > 0 && all[i].node == all[i - 1].node) continue;
+        const Proposal& p = all[i];
+        if (options.cancel) options.cancel->check();
+        if (offsets.isValueOn(p.node)) { // moved by the thin search: it holds a thin part
+            ++out.rejected;
+            continue;
+        }
+        field.sampleNodes(frame, Vec3i(p.node.x() - 1, p.node.y() - 1, p.node.z() - 1), {3, 3, 3}, nullptr, around);
+        bool isolated = true;
+        for (int k : {4, 10, 12, 14, 16, 22}) isolated = isolated && isInside(around[k], iso, side) != p.inside;
+        if (isolated) {
+            ++out.rejected;
+            continue;
+        }
+        const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
+        const Vec3f off(p.point - rest);
+        offsets.setValue(p.node, openvdb::Vec3f(off.x, off.y, off.z));
+        onSurface.setValueOn(p.node);
+        if (p.inside) insideOnSurface.setValueOn(p.node);
+        (p.kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) += 1;
+    }
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (stats) *stats = out;
+}
+
+} // namespace vdbsurf

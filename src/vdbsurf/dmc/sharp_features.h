@@ -1,0 +1,48 @@
+// Sharp features, the second step of Deformed Marching Cubes (after the thin search): per cell
+// with surface, the crossings c_u and their outward normals n_u (field gradient) tell whether an
+// edge (θ = min n_a·n_b < edge threshold) or a corner (φ = max |n_c·(n_0×n_1)| > corner
+// threshold) of the shape passes through it. A corner is the meeting point of three tangent
+// planes (paper eq. 11), an edge the line where two meet; the nearest lattice node whose own
+// cell Ω holds the point (or, for an edge, its projection onto the line) moves onto it.
+//
+// Rules the paper leaves open, chosen so that the result does not depend on thread order:
+// - normal pairs that are nearly opposite are two sheets of a thin part, not an edge;
+// - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
+//   the field and its gradient) exceeds a fifth of a cell, is rejected;
+// - a node the thin search moved, or whose six neighbours all lie on the other side, stays put:
+//   it is the only thing that represents a thin part;
+// - when several cells propose to move one node, a corner beats an edge, then the proposal
+//   closest to the node's place wins, then the lower cell coordinate.
+#pragma once
+#include "vdbsurf/field/field.h"
+
+#include <cstdint>
+
+namespace vdbsurf {
+
+class CancelToken;
+class LatticeSurface;
+struct Lattice;
+struct LatticeDeformation;
+
+struct SharpOptions {
+    double iso = 0;
+    double edgeThreshold = 0.9;   // θ_sharp (--sharp-edge)
+    double cornerThreshold = 0.7; // φ_corner (--sharp-corner)
+    const CancelToken* cancel = nullptr;
+};
+
+struct SharpStats {
+    std::uint64_t edgeCells = 0, cornerCells = 0; // cells whose normals show an edge / a corner
+    std::uint64_t rejected = 0;                   // features found but not placed
+    std::uint64_t nodesOnEdges = 0, nodesOnCorners = 0;
+    double seconds = 0;
+};
+
+// `surface` must have been built with normals on the lattice deformed by the thin search. Adds
+// the nodes it places to deformation.onSurface (with their side in insideOnSurface) and their
+// offsets. Throws Error naming --sharp-edge / --sharp-corner when a threshold is out of [-1, 1].
+void placeSharpFeatures(const Field& field, const Lattice& lattice, const LatticeSurface& surface, const SharpOptions& options,
+                        LatticeDeformation& deformation, SharpStats* stats = nullptr);
+
+} // namespace vdbsurf

@@ -1,0 +1,384 @@
+#include "vdbsurf/dmc/thin_search.h"
+
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/core/progress.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/lattice/lattice.h"
+
+#include <openvdb/tree/LeafManager.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <optional>
+
+namespace vdbsurf {
+
+using openvdb::Coord;
+
+int thinSearchSamplesPerAxis(int steps) { return int(std::ceil(steps * std::sqrt(5.0) / 2.0 - 1e-9)); }
+
+namespace {
+
+using MaskLeaf = openvdb::MaskTree::LeafNodeType;
+constexpr int kN = 9;
+inline int nodeIndex(int x, int y, int z) { return x + kN * y + kN * kN * z; }
+
+// Does marching cubes separate two nodes of one side that meet across a diagonal of this cell
+// (inside nodes across a face, either side across the cell)? Then the field may join them.
+bool separatesDiagonal(unsigned config) {
+    for (int axis = 0; axis < 3; ++axis)
+        for (int s = 0; s < 2; ++s) {
+            const int u = 1 << ((axis + 1) % 3), v = 1 << ((axis + 2) % 3), base = s << axis;
+            const bool c00 = config >> base & 1u, c11 = config >> (base | u | v) & 1u;
+            const bool c10 = config >> (base | u) & 1u, c01 = config >> (base | v) & 1u;
+            if ((c00 && c11 && !c10 && !c01) || (c10 && c01 && !c00 && !c11)) return true;
+        }
+    for (int c = 0; c < 4; ++c) {
+        const unsigned pair = (1u << c) | (1u << (7 - c));
+        if (config == pair || config == (255u & ~pair)) return true;
+    }
+    return false;
+}
+
+// The corners of hidden cells (`hidden`) and of cells where marching cubes separates a diagonal
+// pair (`ambiguous`), each sorted and unique.
+void classifyCells(const Field& field, const Lattice& lattice, double iso, const CancelToken* cancel, std::uint64_t& hiddenCells,
+                   std::vector<Coord>& hidden, std::vector<Coord>& ambiguous) {
+    openvdb::tree::LeafManager<const openvdb::MaskTree> leaves(*lattice.cells);
+    std::vector<std::vector<Coord>> perLeaf(leaves.leafCount()), ambiguousPerLeaf(leaves.leafCount());
+    std::vector<std::uint64_t> hiddenPerLeaf(leaves.leafCount(), 0);
+    const Inside side = field.inside();
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::array<double, kN * kN * kN> vals;
+        std::array<std::uint8_t, kN * kN * kN> needed;
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            if (cancel) cancel->check();
+            const MaskLeaf& leaf = leaves.leaf(li);
+            const Coord o = leaf.origin();
+            needed.fill(0);
+            for (auto it = leaf.cbeginValueOn(); it; ++it) {
+                const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
+                for (int c = 0; c < 8; ++c) needed[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))] = 1;
+            }
+            field.sampleNodes(lattice.frame, {o.x(), o.y(), o.z()}, {kN, kN, kN}, needed.data(), vals.data());
+            auto& out = perLeaf[li];
+            for (auto it = leaf.cbeginValueOn(); it; ++it) {
+                const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
+                unsigned config = 0;
+                for (int c = 0; c < 8; ++c)
+                    if (isInside(vals[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))], iso, side))
+                        config |= 1u << c;
+                std::vector<Coord>* to = nullptr;
+                if (config == 0 || config == 255) {
+                    ++hiddenPerLeaf[li];
+                    to = &out;
+                } else if (separatesDiagonal(config)) {
+                    to = &ambiguousPerLeaf[li];
+                } else if (__builtin_popcount(config) == 1 || __builtin_popcount(config) == 7) {
+                    // A corner alone on its side here may be alone among its six neighbours too.
+                    const int c = __builtin_ctz(__builtin_popcount(config) == 1 ? config : (~config & 255u));
+                    ambiguousPerLeaf[li].push_back(o.offsetBy(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)));
+                }
+                if (!to) continue;
+                for (int c = 0; c < 8; ++c) to->push_back(o.offsetBy(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)));
+            }
+            for (auto* list : {&out, &ambiguousPerLeaf[li]}) {
+                std::sort(list->begin(), list->end());
+                list->erase(std::unique(list->begin(), list->end()), list->end());
+            }
+        }
+    });
+    auto gather = [](std::vector<std::vector<Coord>>& parts, std::vector<Coord>& all) {
+        for (auto& p : parts) all.insert(all.end(), p.begin(), p.end());
+        std::sort(all.begin(), all.end());
+        all.erase(std::unique(all.begin(), all.end()), all.end());
+    };
+    gather(perLeaf, hidden);
+    gather(ambiguousPerLeaf, ambiguous);
+    for (std::uint64_t n : hiddenPerLeaf) hiddenCells += n;
+}
+
+// Searches one node's Ω. With `onlyUnrepresented`, only the parts of Ω in active cells that have
+// no corner on the other side count (the first phase); without, all of Ω does (bridging).
+class OmegaSearch {
+public:
+    OmegaSearch(const Field& field, const Lattice& lattice, double iso, int steps)
+        : mField(field), mLattice(lattice), mIso(iso), mSide(field.inside()), mH(lattice.frame.h) {
+        const int m = thinSearchSamplesPerAxis(steps);
+        const double a = mH / m;
+        for (int i = 0; i < m; ++i) {
+            const double cubic = -mH / 2 + (i + 0.5) * a, centred = -mH / 2 + i * a;
+            mAxis[0][cubic < 0 ? 0 : 1].push_back(cubic);
+            mAxis[1][centred < 0 ? 0 : 1].push_back(centred);
+        }
+    }
+
+    // Strictly on the other side of a node whose side is `inside`: an iso value counts for neither.
+    bool otherSide(bool inside, double v) const {
+        return inside ? (mSide == Inside::Below ? v > mIso : v < mIso) : isInside(v, mIso, mSide);
+    }
+
+    // The node's new offset, if its Ω holds samples on the other side. `around` holds the values
+    // of the 3x3x3 nodes centred on it (x fastest).
+    std::optional<Vec3f> search(const Coord& n, const double* around, bool onlyUnrepresented,
+                                openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>& cells, std::uint64_t& evaluated,
+                                std::vector<Vec3d>& found) const {
+        const LatticeFrame& frame = mLattice.frame;
+        const Vec3i ni(n.x(), n.y(), n.z());
+        const bool nodeInside = isInside(around[13], mIso, mSide);
+        const Vec3d centre = frame.nodeWorld(ni);
+        found.clear();
+        for (int d = 0; d < 8; ++d) {
+            const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
+            const Coord cell = n.offsetBy(dx - 1, dy - 1, dz - 1);
+            if (!mLattice.cellRange.isInside(cell)) continue;
+            if (onlyUnrepresented) {
+                if (!cells.isValueOn(cell)) continue;
+                bool represented = false; // the other side already has a corner in this cell
+                for (int c = 0; c < 8 && !represented; ++c) {
+                    const int x = dx + (c & 1), y = dy + ((c >> 1) & 1), z = dz + ((c >> 2) & 1);
+                    represented = isInside(around[x + 3 * y + 9 * z], mIso, mSide) != nodeInside;
+                }
+                if (represented) continue;
+            }
+            const Vec3d lo = centre + Vec3d(dx ? 0 : -mH / 2, dy ? 0 : -mH / 2, dz ? 0 : -mH / 2);
+            if (!straddles(mField.bounds(Box3{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)}), mIso)) continue;
+            for (int pattern = 0; pattern < 2; ++pattern)
+                for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
+                    for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
+                        for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) {
+                            const Vec3d p = centre + Vec3d(ox, oy, oz);
+                            ++evaluated;
+                            if (otherSide(nodeInside, mField.value(p))) found.push_back(p);
+                        }
+        }
+        if (found.empty()) return std::nullopt;
+        // The node goes where the lattice will evaluate it (a float offset from its place).
+        auto placed = [&](const Vec3d& p) -> std::optional<Vec3f> {
+            const Vec3f off(p - centre);
+            return otherSide(nodeInside, mField.value(centre + Vec3d(off))) ? std::optional<Vec3f>(off) : std::nullopt;
+        };
+        Vec3d mean;
+        for (const Vec3d& p : found) mean += p;
+        mean = mean / double(found.size());
+        if (auto move = placed(mean)) return move;
+        // The centroid of a curved or split part can fall outside it: take the sample nearest to it.
+        std::size_t best = 0;
+        double bestDistance = INFINITY;
+        for (std::size_t i = 0; i < found.size(); ++i) {
+            const Vec3d dv = found[i] - mean;
+            const double dist = dot(dv, dv);
+            if (dist < bestDistance) bestDistance = dist, best = i;
+        }
+        return placed(found[best]);
+    }
+
+    Inside side() const { return mSide; }
+    double iso() const { return mIso; }
+
+private:
+    const Field& mField;
+    const Lattice& mLattice;
+    double mIso;
+    Inside mSide;
+    double mH;
+    std::array<std::array<std::vector<double>, 2>, 2> mAxis; // [pattern: cubic, centred][half of Ω: below, above]
+};
+
+inline int local3(int x, int y, int z) { return (x + 1) + 3 * (y + 1) + 9 * (z + 1); }
+
+} // namespace
+
+void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
+                ThinSearchStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    if (options.steps < 1 || options.steps > 64)
+        throw Error("--search-steps", "must be between 1 and 64, not " + std::to_string(options.steps));
+    ThinSearchStats local;
+    const LatticeFrame& frame = lattice.frame;
+    const double iso = options.iso;
+    const Inside side = field.inside();
+    const OmegaSearch searcher(field, lattice, iso, options.steps);
+
+    // A field whose bounds over a cell are its corners' range has nothing hidden inside a cell.
+    std::vector<Coord> candidates, ambiguous;
+    if (!field.cellBoundsAreCornerRange(frame)) classifyCells(field, lattice, iso, options.cancel, local.hiddenCells, candidates, ambiguous);
+    local.candidates = candidates.size();
+
+    // Phase 1: corners of hidden cells search the parts of their Ω that no corner represents.
+    std::vector<std::optional<Vec3f>> moves(candidates.size());
+    std::vector<std::uint64_t> samples(candidates.size(), 0);
+    {
+        Progress progress("thin search", candidates.size(), options.cancel);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+            openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> cells(*lattice.cells);
+            std::array<double, 27> around;
+            std::vector<Vec3d> found;
+            for (std::size_t ci = r.begin(); ci < r.end(); ++ci) {
+                progress.advance();
+                const Coord n = candidates[ci];
+                field.sampleNodes(frame, Vec3i(n.x() - 1, n.y() - 1, n.z() - 1), {3, 3, 3}, nullptr, around.data());
+                moves[ci] = searcher.search(n, around.data(), true, cells, samples[ci], found);
+            }
+        });
+    }
+    if (options.cancel) options.cancel->check();
+
+    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
+    std::vector<Coord> frontier = std::move(ambiguous);
+    for (std::size_t ci = 0; ci < candidates.size(); ++ci) {
+        local.samples += samples[ci];
+        if (!moves[ci]) continue;
+        acc.setValue(candidates[ci], openvdb::Vec3f(moves[ci]->x, moves[ci]->y, moves[ci]->z));
+        frontier.push_back(candidates[ci]);
+        ++local.nodesMoved;
+    }
+    std::sort(frontier.begin(), frontier.end());
+    frontier.erase(std::unique(frontier.begin(), frontier.end()), frontier.end());
+
+    // Phase 2, bridging: marching cubes never joins two inside nodes across the diagonal of a
+    // face, nor two nodes of one side across a cell's diagonal. Where nodes of a thin part (moved
+    // or not) meet like that and the part does join them (the segment between them stays on
+    // their side), one of the nodes between searches its whole Ω and moves into the part.
+    // Starts from the moved nodes and the corners of such cells, then repeats from the nodes
+    // that moved, until nothing moves.
+    tbb::enumerable_thread_specific<std::uint64_t> bridgeSamples(0);
+    for (int round = 0; round < 16 && !frontier.empty(); ++round) {
+        struct Bridge {
+            Coord node;
+            Vec3f offset;
+        };
+        std::vector<std::vector<Bridge>> proposals(frontier.size());
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frontier.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
+            openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> cells(*lattice.cells);
+            openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false> offsets(*deformation.offsets);
+            std::vector<Vec3d> found;
+            double block[125], around[27];
+            std::uint64_t evaluated = 0;
+            for (std::size_t fi = r.begin(); fi < r.end(); ++fi) {
+                const Coord p = frontier[fi];
+                // Values at the 5x5x5 nodes around p (3x3x3 around each node between).
+                field.sampleNodes(frame, Vec3i(p.x() - 2, p.y() - 2, p.z() - 2), {5, 5, 5}, nullptr, block);
+                auto rest = [&](int x, int y, int z) { return block[(x + 2) + 5 * (y + 2) + 25 * (z + 2)]; };
+                auto position = [&](int x, int y, int z, bool& moved) {
+                    const Coord c = p.offsetBy(x, y, z);
+                    openvdb::Vec3f off;
+                    moved = offsets.probeValue(c, off);
+                    return frame.nodeWorld(Vec3i(c.x(), c.y(), c.z())) + Vec3d(off.x(), off.y(), off.z());
+                };
+                // Side of the node at offset (x, y, z) from p, where it is now.
+                auto insideAt = [&](int x, int y, int z) {
+                    bool moved = false;
+                    position(x, y, z, moved);
+                    const bool restInside = isInside(rest(x, y, z), iso, side);
+                    return moved ? !restInside : restInside;
+                };
+                const bool pInside = insideAt(0, 0, 0);
+                bool pMoved = false;
+                const Vec3d pPos = position(0, 0, 0, pMoved);
+                auto joined = [&](const Vec3d& q) {
+                    for (int k = 1; k < 6; ++k) {
+                        const double v = field.value(pPos + (q - pPos) * (k / 6.0));
+                        if (pInside ? !isInside(v, iso, side) : !searcher.otherSide(true, v)) return false;
+                    }
+                    return true;
+                };
+                // Try the nodes between (offsets from p); the one that lands nearest the middle moves.
+                auto bridge = [&](const std::vector<Vec3i>& between, const Vec3d& middle) {
+                    std::optional<Bridge> best;
+                    double bestDistance = INFINITY;
+                    for (const Vec3i& b : between) {
+                        bool moved = false;
+                        position(b.x, b.y, b.z, moved);
+                        if (moved) continue;
+                        const Coord n = p.offsetBy(b.x, b.y, b.z);
+                        for (int z = -1; z <= 1; ++z)
+                            for (int y = -1; y <= 1; ++y)
+                                for (int x = -1; x <= 1; ++x) around[local3(x, y, z)] = rest(b.x + x, b.y + y, b.z + z);
+                        const std::optional<Vec3f> off = searcher.search(n, around, false, cells, evaluated, found);
+                        if (!off) continue;
+                        const Vec3d target = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*off);
+                        const double dist = length(target - middle);
+                        if (dist < bestDistance) bestDistance = dist, best = Bridge{n, *off};
+                    }
+                    if (best) proposals[fi].push_back(*best);
+                };
+                // A node alone on its side among its six neighbours: the part it lies in is thin
+                // here, and neighbours that find the part in their Ω join it (the paper's flood).
+                {
+                    bool alone = true;
+                    for (int k = 0; k < 6 && alone; ++k) {
+                        Vec3i e;
+                        e[std::size_t(k / 2)] = k % 2 ? 1 : -1;
+                        alone = insideAt(e.x, e.y, e.z) != pInside;
+                    }
+                    if (alone)
+                        for (int k = 0; k < 6; ++k) {
+                            Vec3i e;
+                            e[std::size_t(k / 2)] = k % 2 ? 1 : -1;
+                            bridge({e}, pPos);
+                        }
+                }
+                // Face diagonals: inside nodes only (outside ones are joined by marching cubes).
+                if (pInside)
+                    for (int a = 0; a < 3; ++a)
+                        for (int sa = -1; sa <= 1; sa += 2)
+                            for (int b = a + 1; b < 3; ++b)
+                                for (int sb = -1; sb <= 1; sb += 2) {
+                                    Vec3i ea, eb;
+                                    ea[std::size_t(a)] = sa;
+                                    eb[std::size_t(b)] = sb;
+                                    const Vec3i q = ea + eb;
+                                    if (!insideAt(q.x, q.y, q.z) || insideAt(ea.x, ea.y, ea.z) || insideAt(eb.x, eb.y, eb.z)) continue;
+                                    bool moved = false;
+                                    const Vec3d qPos = position(q.x, q.y, q.z, moved);
+                                    if (!joined(qPos)) continue;
+                                    bridge({ea, eb}, (pPos + qPos) * 0.5);
+                                }
+                // Cell diagonals, either side.
+                for (int d = 0; d < 8; ++d) {
+                    const Vec3i q((d & 1) ? 1 : -1, (d & 2) ? 1 : -1, (d & 4) ? 1 : -1);
+                    if (insideAt(q.x, q.y, q.z) != pInside) continue;
+                    std::vector<Vec3i> between;
+                    bool separated = true;
+                    for (int c = 1; c < 7 && separated; ++c) {
+                        const Vec3i b((c & 1) ? q.x : 0, (c & 2) ? q.y : 0, (c & 4) ? q.z : 0);
+                        separated = insideAt(b.x, b.y, b.z) != pInside;
+                        between.push_back(b);
+                    }
+                    if (!separated) continue;
+                    bool moved = false;
+                    const Vec3d qPos = position(q.x, q.y, q.z, moved);
+                    if (!joined(qPos)) continue;
+                    // Nodes next to p first: after one moves, a face diagonal remains and is bridged next round.
+                    bridge({Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)}, (pPos + qPos) * 0.5);
+                }
+            }
+            bridgeSamples.local() += evaluated;
+        });
+        if (options.cancel) options.cancel->check();
+        std::vector<Bridge> all;
+        for (auto& v : proposals) all.insert(all.end(), v.begin(), v.end());
+        std::sort(all.begin(), all.end(), [](const Bridge& x, const Bridge& y) { return x.node < y.node; });
+        frontier.clear();
+        for (std::size_t i = 0; i < all.size(); ++i) {
+            if (i > 0 && all[i].node == all[i - 1].node) continue; // one node, one search: the same offset
+            if (acc.isValueOn(all[i].node)) continue;
+            acc.setValue(all[i].node, openvdb::Vec3f(all[i].offset.x, all[i].offset.y, all[i].offset.z));
+            frontier.push_back(all[i].node);
+            ++local.nodesMoved;
+            ++local.bridged;
+        }
+    }
+
+    for (std::uint64_t n : bridgeSamples) local.samples += n;
+    local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (stats) *stats = local;
+}
+
+} // namespace vdbsurf

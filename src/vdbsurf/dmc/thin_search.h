@@ -1,0 +1,50 @@
+// Thin search, the first step of Deformed Marching Cubes: lattice nodes move, each within its own
+// cell Ω = node + [-h/2, h/2)^3, into parts of the shape that no node reaches — solid parts
+// thinner than a cell, and (symmetrically) gaps and cracks thinner than a cell inside a solid.
+//
+// Which nodes search is decided from the field's bounds, not by flooding from a seed: a cell
+// whose bounds straddle the iso value although its eight corners lie on one side ("hidden") may
+// hold a part the corners miss, and its corners search the parts of their Ω that lie in such
+// cells. Cells that already have a corner on the other side are left alone, so a smooth thick
+// surface is meshed exactly as plain marching cubes meshes it. Every node decides from the
+// undeformed lattice only, so the search runs in parallel and does not depend on thread order.
+//
+// Sampling: a body-centred cubic pattern of spacing a = h/m with m = ceil(k·√5/2) per axis,
+// aligned so that the samples of all Ω together form one global lattice. Its covering radius
+// a·√5/4 <= h/(2k) guarantees that any ball of diameter h/k — so any part at least h/k wide —
+// contains a sample.
+#pragma once
+#include "vdbsurf/field/field.h"
+
+#include <cstdint>
+
+namespace vdbsurf {
+
+class CancelToken;
+struct Lattice;
+struct LatticeDeformation;
+
+struct ThinSearchOptions {
+    double iso = 0;
+    int steps = 5; // k: parts at least h/k wide are found
+    const CancelToken* cancel = nullptr;
+};
+
+struct ThinSearchStats {
+    std::uint64_t hiddenCells = 0;  // active cells with all corners on one side
+    std::uint64_t candidates = 0;   // nodes that searched
+    std::uint64_t samples = 0;      // field evaluations spent searching
+    std::uint64_t nodesMoved = 0;
+    std::uint64_t bridged = 0;      // of those, moved to join a thin part's nodes across a diagonal
+    double seconds = 0;
+};
+
+// Samples per axis of Ω for `steps`.
+int thinSearchSamplesPerAxis(int steps);
+
+// Adds the moves it finds to `deformation` (whose offsets must be empty). Throws Error naming
+// --search-steps when steps is out of range (1 .. 64).
+void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
+                ThinSearchStats* stats = nullptr);
+
+} // namespace vdbsurf
