@@ -9,6 +9,7 @@
 #include "vdbsurf/lattice/lattice.h"
 
 #include <chrono>
+#include <memory>
 #include <cmath>
 #include <sstream>
 
@@ -86,17 +87,26 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     so.triangulate = request.triangulate;
     so.normals = dmc && request.sharp;
     so.cancel = request.cancel;
-    LatticeSurface surface(field, lattice, &deformation, so);
+    auto surface = std::make_unique<LatticeSurface>(field, lattice, &deformation, so);
     if (dmc && request.sharp) {
         SharpOptions sh;
         sh.iso = report.iso;
         sh.edgeThreshold = request.sharpEdge;
         sh.cornerThreshold = request.sharpCorner;
+        sh.searchSteps = request.searchSteps;
         sh.cancel = request.cancel;
         SharpStats ss;
-        placeSharpFeatures(field, lattice, surface, sh, deformation, &ss);
+        placeSharpFeatures(field, lattice, *surface, sh, deformation, &ss);
         const auto t = std::chrono::steady_clock::now();
-        surface.moveCrossingsToFeatureNodes(deformation);
+        if (ss.flipped > 0) {
+            // Nodes changed side: cell cases changed, so the surface is built again.
+            activateCellsAroundMovedNodes(lattice, deformation);
+            so.normals = false;
+            surface.reset();
+            surface = std::make_unique<LatticeSurface>(field, lattice, &deformation, so);
+        } else {
+            surface->moveCrossingsToFeatureNodes(deformation);
+        }
         report.sharpEdgeCells = ss.edgeCells;
         report.sharpCornerCells = ss.cornerCells;
         report.sharpRejected = ss.rejected;
@@ -105,11 +115,11 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.secondsSharp = ss.seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
     }
     if (request.deformedLattice) request.deformedLattice(lattice, deformation);
-    Mesh mesh = surface.mesh();
-    report.cellsWithSurface = surface.stats().cellsWithSurface;
-    report.weldedVertices = surface.stats().weldedVertices;
-    report.collapsedPolygons = surface.stats().collapsedPolygons;
-    report.secondsMesh = surface.stats().seconds;
+    Mesh mesh = surface->mesh();
+    report.cellsWithSurface = surface->stats().cellsWithSurface;
+    report.weldedVertices = surface->stats().weldedVertices;
+    report.collapsedPolygons = surface->stats().collapsedPolygons;
+    report.secondsMesh = surface->stats().seconds;
 
     if (mesh.empty()) {
         const Interval r = field.bounds(field.domain());

@@ -5,6 +5,7 @@
 #include "vdbsurf/dmc/cube_table.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
+#include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
 #include <Eigen/Dense>
@@ -124,7 +125,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const Vec3d planes[3] = {n[a], n[b], n[third]};
             const double rhs[3] = {dot(n[a], c[a]), dot(n[b], c[b]), dot(n[third], c[third])};
             Vec3d corner;
-            if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner)) {
+                if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner)) {
                 ++local.rejected;
                 return;
             }
@@ -176,33 +177,58 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         out.rejected += l.rejected;
     }
     std::sort(all.begin(), all.end());
+    // One proposal a node (the best), then corners before edges, so that an edge node never
+    // takes the crossing a corner node needs.
+    all.erase(std::unique(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), all.end());
+    std::stable_sort(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.kind < y.kind; });
 
     openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
     openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface);
     openvdb::tree::ValueAccessor<openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
     double around[27];
+    std::vector<Vec3i> flipped;
     for (std::size_t i = 0; i < all.size(); ++i) {
-        if (i > 0 && all[i].node == all[i - 1].node) continue;
         const Proposal& p = all[i];
         if (options.cancel) options.cancel->check();
-        if (offsets.isValueOn(p.node)) { // moved by the thin search: it holds a thin part
-            ++out.rejected;
-            continue;
-        }
         field.sampleNodes(frame, Vec3i(p.node.x() - 1, p.node.y() - 1, p.node.z() - 1), {3, 3, 3}, nullptr, around);
-        bool isolated = true;
-        for (int k : {4, 10, 12, 14, 16, 22}) isolated = isolated && isInside(around[k], iso, side) != p.inside;
-        if (isolated) {
+        int otherSide = 0;
+        bool sharesCrossing = false; // with a node already on a feature: the edge's one vertex can't be at both
+        for (int k : {4, 10, 12, 14, 16, 22}) {
+            const Coord nb = p.node.offsetBy(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
+            bool inside = isInside(around[k], iso, side);
+            if (onSurface.isValueOn(nb)) {
+                inside = insideOnSurface.isValueOn(nb);
+                sharesCrossing = sharesCrossing || inside != p.inside;
+            } else if (offsets.isValueOn(nb)) {
+                inside = !inside; // moved into a thin part
+            }
+            otherSide += inside != p.inside;
+        }
+        if (otherSide == 6 || sharesCrossing) {
             ++out.rejected;
             continue;
         }
+        // A node with no edge to the other side carries no crossing: placed on the feature as it
+        // is, it would change nothing. It changes side instead (the feature's tip is a thin part
+        // of the other side) and is joined to that side by bridging below.
+        const bool flip = otherSide == 0;
+        const bool inside = flip ? !p.inside : p.inside;
         const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
         const Vec3f off(p.point - rest);
         offsets.setValue(p.node, openvdb::Vec3f(off.x, off.y, off.z));
         onSurface.setValueOn(p.node);
-        if (p.inside) insideOnSurface.setValueOn(p.node);
+        if (inside) insideOnSurface.setValueOn(p.node);
+        if (flip) flipped.emplace_back(p.node.x(), p.node.y(), p.node.z());
         (p.kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) += 1;
     }
+    if (!flipped.empty()) {
+        ThinSearchOptions to;
+        to.iso = iso;
+        to.steps = options.searchSteps;
+        to.cancel = options.cancel;
+        out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped);
+    }
+    out.flipped = flipped.size();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats) *stats = out;
 }

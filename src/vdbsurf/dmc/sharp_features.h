@@ -29,6 +29,7 @@ struct SharpOptions {
     double iso = 0;
     double edgeThreshold = 0.9;   // θ_sharp (--sharp-edge)
     double cornerThreshold = 0.7; // φ_corner (--sharp-corner)
+    int searchSteps = 5;          // for bridging flipped nodes (see thin_search.h)
     const CancelToken* cancel = nullptr;
 };
 
@@ -36,6 +37,9 @@ struct SharpStats {
     std::uint64_t edgeCells = 0, cornerCells = 0; // cells whose normals show an edge / a corner
     std::uint64_t rejected = 0;                   // features found but not placed
     std::uint64_t nodesOnEdges = 0, nodesOnCorners = 0;
+    // Nodes that had no edge to the other side and changed side onto a feature's tip, and the
+    // nodes moved to join them: when non-zero, cell cases changed and the surface is rebuilt.
+    std::uint64_t flipped = 0, bridged = 0;
     double seconds = 0;
 };
 

@@ -202,8 +202,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     ThinSearchStats local;
     const LatticeFrame& frame = lattice.frame;
     const double iso = options.iso;
-    const Inside side = field.inside();
-    const OmegaSearch searcher(field, lattice, iso, options.steps);
+        const OmegaSearch searcher(field, lattice, iso, options.steps);
 
     // A field whose bounds over a cell are its corners' range has nothing hidden inside a cell.
     std::vector<Coord> candidates, ambiguous;
@@ -241,6 +240,24 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     std::sort(frontier.begin(), frontier.end());
     frontier.erase(std::unique(frontier.begin(), frontier.end()), frontier.end());
 
+    std::vector<Vec3i> from;
+    for (const Coord& c : frontier) from.emplace_back(c.x(), c.y(), c.z());
+    local.bridged = bridgeThinParts(field, lattice, options, deformation, from, &local.samples);
+    local.nodesMoved += local.bridged;
+    local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (stats) *stats = local;
+}
+
+std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,
+                              LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samplesOut) {
+    const LatticeFrame& frame = lattice.frame;
+    const double iso = options.iso;
+    const Inside side = field.inside();
+    const OmegaSearch searcher(field, lattice, iso, options.steps);
+    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
+    std::vector<Coord> frontier;
+    for (const Vec3i& v : from) frontier.emplace_back(v.x, v.y, v.z);
+    std::uint64_t bridged = 0;
     // Phase 2, bridging: marching cubes never joins two inside nodes across the diagonal of a
     // face, nor two nodes of one side across a cell's diagonal. Where nodes of a thin part (moved
     // or not) meet like that and the part does join them (the segment between them stays on
@@ -371,14 +388,13 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
             if (acc.isValueOn(all[i].node)) continue;
             acc.setValue(all[i].node, openvdb::Vec3f(all[i].offset.x, all[i].offset.y, all[i].offset.z));
             frontier.push_back(all[i].node);
-            ++local.nodesMoved;
-            ++local.bridged;
+            ++bridged;
         }
     }
 
-    for (std::uint64_t n : bridgeSamples) local.samples += n;
-    local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (stats) *stats = local;
+    if (samplesOut)
+        for (std::uint64_t n : bridgeSamples) *samplesOut += n;
+    return bridged;
 }
 
 } // namespace vdbsurf

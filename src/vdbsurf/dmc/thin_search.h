@@ -17,6 +17,7 @@
 #include "vdbsurf/field/field.h"
 
 #include <cstdint>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -46,5 +47,12 @@ int thinSearchSamplesPerAxis(int steps);
 // --search-steps when steps is out of range (1 .. 64).
 void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
                 ThinSearchStats* stats = nullptr);
+
+// The second phase on its own: starting from the nodes `from`, moves nodes between two nodes of
+// one side that marching cubes would separate across a diagonal although the field joins them,
+// and neighbours of a node alone on its side that find its part in their Ω. Also used after
+// sharp features flip a node onto a corner it had no edge to. Adds the evaluations to *samples.
+std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,
+                              LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samples = nullptr);
 
 } // namespace vdbsurf
