@@ -24,6 +24,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 Mesh meshIt(const Field& f, std::optional<double> h = std::nullopt, MeshReport* out = nullptr, std::optional<double> iso = {}) {
     MeshRequest req;
+    req.method = MeshMethod::MarchingCubes;
     req.voxelSize = h;
     req.iso = iso;
     MeshReport rep;
@@ -149,6 +150,7 @@ TEST_CASE("output does not depend on the number of threads") {
         for (int threads : {1, 2}) {
             ThreadLimit limit(threads);
             MeshRequest req;
+            req.method = MeshMethod::MarchingCubes;
             req.voxelSize = f == &expr ? std::optional<double>(0.05) : std::nullopt;
             MeshReport rep;
             const Mesh m = meshField(*f, req, rep);

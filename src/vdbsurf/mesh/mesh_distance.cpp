@@ -1,0 +1,94 @@
+#include "vdbsurf/mesh/mesh_distance.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace vdbsurf {
+
+double pointTriangleDistance(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+    // Closest point by Voronoi regions of the triangle (vertices, edges, face).
+    const Vec3d ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+    if (d1 <= 0 && d2 <= 0) return length(p - a);
+    const Vec3d bp = p - b;
+    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+    if (d3 >= 0 && d4 <= d3) return length(p - b);
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+        const double den = d1 - d3;
+        return length(p - (a + ab * (den > 0 ? d1 / den : 0.0)));
+    }
+    const Vec3d cp = p - c;
+    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+    if (d6 >= 0 && d5 <= d6) return length(p - c);
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+        const double den = d2 - d6;
+        return length(p - (a + ac * (den > 0 ? d2 / den : 0.0)));
+    }
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+        const double den = (d4 - d3) + (d5 - d6);
+        return length(p - (b + (c - b) * (den > 0 ? (d4 - d3) / den : 0.0)));
+    }
+    const double sum = va + vb + vc;
+    if (!(sum > 0)) return std::min({length(p - a), length(p - b), length(p - c)}); // degenerate
+    return length(p - (a + ab * (vb / sum) + ac * (vc / sum)));
+}
+
+std::int64_t MeshDistance::key(std::int64_t i, std::int64_t j, std::int64_t k) const {
+    return (i & 0x1fffff) | ((j & 0x1fffff) << 21) | ((k & 0x1fffff) << 42);
+}
+
+MeshDistance::MeshDistance(const Mesh& mesh, double cell) : mCell(cell) {
+    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
+        const std::uint32_t b = mesh.offsets[f], e = mesh.offsets[f + 1];
+        for (std::uint32_t i = b + 1; i + 1 < e; ++i)
+            mTris.push_back({Vec3d(mesh.points[mesh.indices[b]]), Vec3d(mesh.points[mesh.indices[i]]), Vec3d(mesh.points[mesh.indices[i + 1]])});
+    }
+    for (std::uint32_t t = 0; t < mTris.size(); ++t) {
+        const Tri& tr = mTris[t];
+        const Vec3d lo = vmin(tr.a, vmin(tr.b, tr.c)), hi = vmax(tr.a, vmax(tr.b, tr.c));
+        for (auto k = std::int64_t(std::floor(lo.z / cell)); k <= std::int64_t(std::floor(hi.z / cell)); ++k)
+            for (auto j = std::int64_t(std::floor(lo.y / cell)); j <= std::int64_t(std::floor(hi.y / cell)); ++j)
+                for (auto i = std::int64_t(std::floor(lo.x / cell)); i <= std::int64_t(std::floor(hi.x / cell)); ++i)
+                    mGrid[key(i, j, k)].push_back(t);
+    }
+}
+
+double MeshDistance::distance(const Vec3d& p, double maxRadius) const {
+    double best = maxRadius;
+    const auto lo = [&](double v) { return std::int64_t(std::floor((v - maxRadius) / mCell)); };
+    const auto hi = [&](double v) { return std::int64_t(std::floor((v + maxRadius) / mCell)); };
+    for (std::int64_t k = lo(p.z); k <= hi(p.z); ++k)
+        for (std::int64_t j = lo(p.y); j <= hi(p.y); ++j)
+            for (std::int64_t i = lo(p.x); i <= hi(p.x); ++i) {
+                const auto it = mGrid.find(key(i, j, k));
+                if (it == mGrid.end()) continue;
+                for (std::uint32_t t : it->second) best = std::min(best, pointTriangleDistance(p, mTris[t].a, mTris[t].b, mTris[t].c));
+            }
+    return best;
+}
+
+std::vector<Vec3d> sampleMeshSurface(const Mesh& mesh, double spacing) {
+    std::vector<Vec3d> out;
+    out.reserve(mesh.points.size());
+    for (const Vec3f& v : mesh.points) out.push_back(Vec3d(v));
+    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
+        const std::uint32_t b = mesh.offsets[f], e = mesh.offsets[f + 1];
+        for (std::uint32_t i = b + 1; i + 1 < e; ++i) {
+            const Vec3d A(mesh.points[mesh.indices[b]]), B(mesh.points[mesh.indices[i]]), C(mesh.points[mesh.indices[i + 1]]);
+            const double longest = std::max({length(B - A), length(C - B), length(A - C)});
+            const int n = std::max(1, int(std::ceil(longest / spacing)));
+            for (int u = 0; u <= n; ++u)
+                for (int v = 0; u + v <= n; ++v) {
+                    if ((u == 0 && v == 0) || (u == n && v == 0) || (u == 0 && v == n)) continue; // vertices already in
+                    const double s = double(u) / n, t = double(v) / n;
+                    out.push_back(A + (B - A) * s + (C - A) * t);
+                }
+        }
+    }
+    return out;
+}
+
+} // namespace vdbsurf

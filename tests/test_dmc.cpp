@@ -1,0 +1,305 @@
+// Deformed Marching Cubes: thin parts kept (plates, rods, shells, cracks at random orientations),
+// the paper's lens, spikes and rotated cube, topology, determinism, and the switches.
+#include "support/test_support.h"
+
+#include "vdbsurf/core/threads.h"
+#include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/field/expression_field.h"
+#include "vdbsurf/mesh/mesh_check.h"
+#include "vdbsurf/mesh/mesh_distance.h"
+#include "vdbsurf/mesh/mesh_io.h"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+#include <sstream>
+
+using namespace vdbsurf;
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::string num(double v) {
+    std::ostringstream s;
+    s.precision(17);
+    s << v;
+    return "(" + s.str() + ")";
+}
+
+Mesh meshFormula(const std::string& formula, const Box3& box, double h, MeshMethod method = MeshMethod::Dmc, bool thin = true,
+                 bool sharp = true) {
+    ExpressionField f(formula, box);
+    MeshRequest req;
+    req.voxelSize = h;
+    req.method = method;
+    req.thin = thin;
+    req.sharp = sharp;
+    MeshReport rep;
+    return meshField(f, req, rep);
+}
+
+void requireClosed(const Mesh& m) {
+    const MeshTopology t = checkTopology(m);
+    INFO("boundary " << t.boundaryEdges << " non-manifold " << t.nonManifoldEdges << " inconsistent " << t.inconsistentEdges
+                     << " unused " << t.unusedVertices);
+    CHECK(t.closedManifoldOriented());
+    CHECK(t.unusedVertices == 0);
+}
+
+// Share of the points within `radius` of the mesh.
+double coverage(const Mesh& m, const std::vector<Vec3d>& points, double radius) {
+    MeshDistance d(m, radius);
+    std::size_t near = 0;
+    for (const Vec3d& p : points) near += d.distance(p, 2 * radius) <= radius;
+    return double(near) / double(points.size());
+}
+
+Vec3d randomUnit(std::mt19937& rng) {
+    std::normal_distribution<double> g;
+    for (;;) {
+        const Vec3d v(g(rng), g(rng), g(rng));
+        if (length(v) > 1e-3) return normalized(v);
+    }
+}
+
+// Two unit vectors completing n to an orthonormal frame.
+void frameOf(const Vec3d& n, Vec3d& a, Vec3d& b) {
+    a = normalized(cross(n, std::fabs(n.x) < 0.9 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0)));
+    b = cross(n, a);
+}
+
+std::string dotWith(const Vec3d& n, const Vec3d& c) {
+    return "(" + num(n.x) + "*(x-" + num(c.x) + ")+" + num(n.y) + "*(y-" + num(c.y) + ")+" + num(n.z) + "*(z-" + num(c.z) + "))";
+}
+std::string radius2(const Vec3d& c) { return "((x-" + num(c.x) + ")^2+(y-" + num(c.y) + ")^2+(z-" + num(c.z) + ")^2)"; }
+
+const Box3 kBox{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
+constexpr double kH = 0.1;
+
+} // namespace
+
+TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide are kept, closed, in one piece") {
+    std::mt19937 rng(20261123);
+    std::uniform_real_distribution<double> jitter(-0.5 * kH, 0.5 * kH);
+    for (double width : {0.2 * kH, 0.3 * kH, 0.5 * kH, 1.0 * kH}) {
+        for (int trial = 0; trial < 2; ++trial) {
+            const Vec3d n = randomUnit(rng), c(jitter(rng), jitter(rng), jitter(rng));
+            Vec3d a, b;
+            frameOf(n, a, b);
+            const double R = 0.7;
+            std::vector<Vec3d> truth;
+            // A disk-shaped plate.
+            {
+                const std::string f = "max(abs(" + dotWith(n, c) + ")-" + num(width / 2) + ", sqrt(" + radius2(c) + ")-" + num(R) + ")";
+                for (int i = 0; i < 400; ++i) {
+                    const double r = 0.9 * R * std::sqrt((i + 0.5) / 400), t = i * 2.39996;
+                    for (double s : {-1.0, 1.0}) truth.push_back(c + a * (r * std::cos(t)) + b * (r * std::sin(t)) + n * (s * width / 2));
+                }
+                const Mesh m = meshFormula(f, kBox, kH);
+                INFO("plate of width " << width / kH << " H, normal " << n.x << " " << n.y << " " << n.z);
+                requireClosed(m);
+                // Target: one piece. A sliver can still come off where the plate only grazes a
+                // node's cell (see the [!mayfail] cases below); more than one is a regression.
+                CHECK(countComponents(m) <= 2);
+                CHECK(coverage(m, truth, kH) >= 0.99);
+            }
+            // A rod (cylinder of diameter `width`) along n, capped by a sphere.
+            truth.clear();
+            {
+                const std::string axial = dotWith(n, c);
+                const std::string f = "max(sqrt(max(" + radius2(c) + "-" + axial + "^2, 0))-" + num(width / 2) + ", sqrt(" + radius2(c) +
+                                      ")-" + num(R) + ")";
+                for (int i = 0; i < 400; ++i) {
+                    const double t = -0.9 * R + 1.8 * R * i / 399.0, phi = i * 2.39996;
+                    truth.push_back(c + n * t + (a * std::cos(phi) + b * std::sin(phi)) * (width / 2));
+                }
+                const Mesh m = meshFormula(f, kBox, kH);
+                INFO("rod of width " << width / kH << " H, axis " << n.x << " " << n.y << " " << n.z);
+                requireClosed(m);
+                CHECK(countComponents(m) <= 2);
+                CHECK(coverage(m, truth, kH) >= 0.99);
+            }
+            // A spherical shell.
+            truth.clear();
+            {
+                const std::string f = "abs(sqrt(" + radius2(c) + ")-" + num(R) + ")-" + num(width / 2);
+                for (int i = 0; i < 800; ++i) {
+                    const Vec3d d = randomUnit(rng);
+                    truth.push_back(c + d * (R + (i % 2 ? 1 : -1) * width / 2));
+                }
+                const Mesh m = meshFormula(f, kBox, kH);
+                INFO("shell of width " << width / kH << " H");
+                requireClosed(m);
+                CHECK(countComponents(m) <= 2); // outer and inner surface
+                CHECK(coverage(m, truth, kH) >= 0.99);
+            }
+        }
+    }
+}
+
+TEST_CASE("a crack thinner than a cell inside a solid comes out (concave thin part)") {
+    std::mt19937 rng(7);
+    for (double width : {0.2 * kH, 0.3 * kH}) {
+        const Vec3d n = randomUnit(rng), c(0.013, -0.021, 0.017);
+        Vec3d a, b;
+        frameOf(n, a, b);
+        // A ball with a planar crack through its middle: two half-balls a crack apart.
+        const std::string f = "max(sqrt(" + radius2(c) + ")-0.8, " + num(width / 2) + "-abs(" + dotWith(n, c) + "))";
+        std::vector<Vec3d> crackFaces;
+        for (int i = 0; i < 400; ++i) {
+            const double r = 0.6 * std::sqrt((i + 0.5) / 400), t = i * 2.39996;
+            for (double s : {-1.0, 1.0}) crackFaces.push_back(c + a * (r * std::cos(t)) + b * (r * std::sin(t)) + n * (s * width / 2));
+        }
+        const Mesh dmc = meshFormula(f, kBox, kH);
+        const Mesh mc = meshFormula(f, kBox, kH, MeshMethod::MarchingCubes);
+        INFO("crack of width " << width / kH << " H");
+        requireClosed(dmc);
+        CHECK(coverage(dmc, crackFaces, kH) >= 0.99);
+        CHECK(coverage(mc, crackFaces, kH) < 0.9); // what marching cubes loses
+    }
+}
+
+TEST_CASE("the paper's lens (eq. 13) on 120^3 closes as one watertight piece that marching cubes loses") {
+    const std::string f = "max(x^2+y^2+z^2-9, 8.9-x^2-y^2-z^2, y)";
+    const Box3 box{{-3.5, -3.5, -3.5}, {3.5, 3.5, 3.5}};
+    const double h = 7.0 / 120;
+    std::vector<Vec3d> truth;
+    std::mt19937 rng(13);
+    while (truth.size() < 2000) {
+        Vec3d d = randomUnit(rng);
+        if (d.y > -0.05) continue;
+        truth.push_back(d * (truth.size() % 2 ? 3.0 : std::sqrt(8.9)));
+    }
+    const Mesh dmc = meshFormula(f, box, h);
+    const Mesh mc = meshFormula(f, box, h, MeshMethod::MarchingCubes);
+    requireClosed(dmc);
+    CHECK(countComponents(dmc) == 1);
+    const double covDmc = coverage(dmc, truth, h), covMc = coverage(mc, truth, h);
+    INFO("coverage within 1 H: dmc " << covDmc << ", mc " << covMc);
+    CHECK(covDmc >= 0.99);
+    CHECK(covMc < 0.9);
+    CHECK(covDmc > covMc + 0.1);
+}
+
+TEST_CASE("20 spikes on an 80^3 lattice: every tip is present") {
+    // A ball with 20 thin cones along a Fibonacci spiral of directions.
+    std::string f = "sqrt(x^2+y^2+z^2)-1";
+    std::vector<Vec3d> tips;
+    const double tipDistance = 2.6, baseRadius = 0.3;
+    for (int i = 0; i < 20; ++i) {
+        const double zc = 1 - (i + 0.5) * 2 / 20, r = std::sqrt(1 - zc * zc), phi = i * 2.39996;
+        const Vec3d d(r * std::cos(phi), r * std::sin(phi), zc);
+        tips.push_back(d * tipDistance);
+        const std::string t = "(" + num(d.x) + "*x+" + num(d.y) + "*y+" + num(d.z) + "*z)";
+        const std::string radial = "sqrt(max(x^2+y^2+z^2-" + t + "^2, 0))";
+        f = "min(" + f + ", max(" + radial + "-" + num(baseRadius / tipDistance) + "*(" + num(tipDistance) + "-" + t + "), -" + t + "))";
+    }
+    const Box3 box{{-3, -3, -3}, {3, 3, 3}};
+    const double h = 6.0 / 80;
+    const Mesh dmc = meshFormula(f, box, h);
+    const Mesh mc = meshFormula(f, box, h, MeshMethod::MarchingCubes);
+    requireClosed(dmc);
+    CHECK(countComponents(dmc) <= 2);
+    MeshDistance dd(dmc, h), dm(mc, h);
+    // The spike is h/5 wide (what the search guarantees) this far from its tip.
+    const double guaranteed = (h / 5) / (2 * baseRadius / tipDistance);
+    int reachedDmc = 0, reachedMc = 0;
+    for (const Vec3d& tip : tips) {
+        reachedDmc += dd.distance(tip, 4 * h) <= guaranteed + 0.5 * h;
+        reachedMc += dm.distance(tip, 4 * h) <= guaranteed + 0.5 * h;
+    }
+    INFO("tips reached: dmc " << reachedDmc << ", mc " << reachedMc << " (within " << (guaranteed + 0.5 * h) / h << " H)");
+    CHECK(reachedDmc == 20);
+    CHECK(reachedMc < 20);
+}
+
+TEST_CASE("a rotated cube on a coarse lattice keeps its corners exactly and its edges closer than marching cubes") {
+    // Rotation from Euler angles, the cube's local coordinates as rows.
+    const double ax = 0.3, ay = 0.5, az = 0.7;
+    const double cx = std::cos(ax), sx = std::sin(ax), cy = std::cos(ay), sy = std::sin(ay), cz = std::cos(az), sz = std::sin(az);
+    const double R[3][3] = {{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
+                            {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
+                            {-sy, cy * sx, cy * cx}};
+    const Vec3d c(0.013, 0.021, -0.017);
+    std::string f = "max(";
+    for (int i = 0; i < 3; ++i) f += (i ? ",abs" : "abs") + dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+    f += ")-1";
+    const Box3 box{{-2, -2, -2}, {2, 2, 2}};
+    for (double h : {0.25, 0.37}) {
+        const Mesh dmc = meshFormula(f, box, h);
+        const Mesh mc = meshFormula(f, box, h, MeshMethod::MarchingCubes);
+        INFO("h " << h);
+        requireClosed(dmc);
+        CHECK(countComponents(dmc) == 1);
+        auto world = [&](const Vec3d& l) {
+            return c + Vec3d(R[0][0] * l.x + R[0][1] * l.y + R[0][2] * l.z, R[1][0] * l.x + R[1][1] * l.y + R[1][2] * l.z,
+                             R[2][0] * l.x + R[2][1] * l.y + R[2][2] * l.z);
+        };
+        MeshDistance dd(dmc, h), dm(mc, h);
+        for (int s = 0; s < 8; ++s) {
+            const Vec3d corner = world({s & 1 ? 1.0 : -1.0, s & 2 ? 1.0 : -1.0, s & 4 ? 1.0 : -1.0});
+            double nearest = INFINITY;
+            for (const Vec3f& v : dmc.points) nearest = std::min(nearest, length(Vec3d(v) - corner));
+            CHECK(nearest <= 0.1 * h);
+        }
+        // Points along the 12 edges: the median distance to the mesh.
+        std::vector<double> ed, em;
+        for (int axis = 0; axis < 3; ++axis)
+            for (int s = 0; s < 4; ++s)
+                for (int k = 1; k < 20; ++k) {
+                    Vec3d l(s & 1 ? 1.0 : -1.0, s & 2 ? 1.0 : -1.0, 0.0);
+                    Vec3d p;
+                    p[std::size_t(axis)] = -1 + 2.0 * k / 20;
+                    p[std::size_t((axis + 1) % 3)] = l.x;
+                    p[std::size_t((axis + 2) % 3)] = l.y;
+                    ed.push_back(dd.distance(world(p), 2 * h));
+                    em.push_back(dm.distance(world(p), 2 * h));
+                }
+        std::sort(ed.begin(), ed.end());
+        std::sort(em.begin(), em.end());
+        INFO("median edge distance: dmc " << ed[ed.size() / 2] / h << " H, mc " << em[em.size() / 2] / h << " H");
+        CHECK(ed[ed.size() / 2] < 0.1 * h);
+        CHECK(ed[ed.size() / 2] < 0.5 * em[em.size() / 2]);
+    }
+}
+
+TEST_CASE("DMC output is byte-identical at 1 and 2 threads") {
+    test::TempDir dir;
+    std::string files[2];
+    for (int threads : {1, 2}) {
+        ThreadLimit limit(threads);
+        const Mesh m = meshFormula("min(max(x^2+y^2+z^2-0.81, 0.78-x^2-y^2-z^2, y), max(abs(x)-0.6,abs(y-0.3)-0.6,abs(z)-0.6))",
+                                   kBox, kH);
+        const std::string path = dir.path("t" + std::to_string(threads) + ".obj");
+        writeMesh(path, m);
+        files[threads - 1] = test::readFile(path);
+    }
+    CHECK(files[0].size() > 1000);
+    CHECK(files[0] == files[1]);
+}
+
+TEST_CASE("--no-thin --no-sharp is plain marching cubes; each step changes a shape that needs it") {
+    const std::string lens = "max(x^2+y^2+z^2-0.81, 0.8-x^2-y^2-z^2, y)";
+    const Mesh plain = meshFormula(lens, kBox, kH, MeshMethod::MarchingCubes);
+    const Mesh off = meshFormula(lens, kBox, kH, MeshMethod::Dmc, false, false);
+    CHECK(plain.points == off.points);
+    CHECK(plain.indices == off.indices);
+    CHECK(plain.offsets == off.offsets);
+    const Mesh thin = meshFormula(lens, kBox, kH, MeshMethod::Dmc, true, false);
+    CHECK(thin.points.size() > plain.points.size());
+    const std::string cube = "max(abs(0.8*x+0.6*y),abs(-0.6*x+0.8*y),abs(z-0.01))-0.5";
+    const Mesh flat = meshFormula(cube, kBox, kH, MeshMethod::Dmc, true, false);
+    const Mesh sharp = meshFormula(cube, kBox, kH, MeshMethod::Dmc, true, true);
+    CHECK_FALSE(flat.points == sharp.points);
+}
+
+// Known shortfalls, kept visible: a lattice edge that crosses a thin part with neither end in
+// it still joins what the part separates (a crack leaves the halves joined), and a part that
+// only grazes a node's cell can leave a sliver apart. These report until the edge rule lands.
+TEST_CASE("a crack separates the two halves of a ball", "[!mayfail]") {
+    const std::string f = "max(sqrt(x^2+y^2+z^2)-0.8, 0.015-abs(0.48*x+0.6*y+0.64*z-0.013))";
+    const Mesh dmc = meshFormula(f, kBox, kH);
+    CHECK(countComponents(dmc) == 2);
+}
