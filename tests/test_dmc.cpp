@@ -280,7 +280,7 @@ TEST_CASE("DMC output is byte-identical at 1 and 2 threads") {
     CHECK(files[0] == files[1]);
 }
 
-TEST_CASE("--no-thin --no-sharp is plain marching cubes; each step changes a shape that needs it") {
+TEST_CASE("DMC with thin search and sharp features off is plain marching cubes, and each step changes a shape that needs it") {
     const std::string lens = "max(x^2+y^2+z^2-0.81, 0.8-x^2-y^2-z^2, y)";
     const Mesh plain = meshFormula(lens, kBox, kH, MeshMethod::MarchingCubes);
     const Mesh off = meshFormula(lens, kBox, kH, MeshMethod::Dmc, false, false);

@@ -336,6 +336,13 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
             offsets.push_back(std::uint32_t(indices.size()));
         };
         for (std::size_t f = 0; f + 1 < mesh.offsets.size(); ++f) {
+            bool touched = false;
+            for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1] && !touched; ++i) touched = remap[mesh.indices[i]] != mesh.indices[i];
+            if (!touched) { // most polygons: copied as they are
+                indices.insert(indices.end(), mesh.indices.begin() + mesh.offsets[f], mesh.indices.begin() + mesh.offsets[f + 1]);
+                offsets.push_back(std::uint32_t(indices.size()));
+                continue;
+            }
             poly.clear();
             for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) poly.push_back(remap[mesh.indices[i]]);
             emitLoop(emitLoop, poly);
