@@ -4,6 +4,7 @@
 #include "vdbsurf/core/progress.h"
 #include "vdbsurf/dmc/cube_table.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/dmc/leaf_nodes.h"
 
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/parallel_for.h>
@@ -22,10 +23,6 @@ using openvdb::CoordBBox;
 namespace {
 
 using MaskLeaf = openvdb::MaskTree::LeafNodeType;
-constexpr int kN = 9; // nodes per block side
-constexpr int kNodeCount = kN * kN * kN;
-
-inline int nodeIndex(int x, int y, int z) { return x + kN * y + kN * kN * z; }
 
 // Per-leaf results of the first pass: the vertices this leaf owns and what the second pass
 // needs to find them again (cell rank -> first vertex, owned-edge mask).
@@ -122,11 +119,11 @@ void LatticeSurface::Impl::firstPass() {
             offsetAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>>(*deformation->offsets);
             surfaceAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>>(*deformation->onSurface);
         }
-        std::array<double, kNodeCount> vals;
-        std::array<std::uint8_t, kNodeCount> needed;
+        std::array<double, kLeafNodeCount> vals;
+        std::array<std::uint8_t, kLeafNodeCount> needed;
         // 0: in place, 1: moved, 2: on a sharp feature (value = iso) counted outside, 3: the same counted inside
-        std::array<std::uint8_t, kNodeCount> moved;
-        std::array<Vec3f, kNodeCount> offsets;
+        std::array<std::uint8_t, kLeafNodeCount> moved;
+        std::array<Vec3f, kLeafNodeCount> offsets;
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
             const MaskLeaf& leaf = leafManager.leaf(li);
             LeafWork& w = work[li];
@@ -146,18 +143,13 @@ void LatticeSurface::Impl::firstPass() {
             w.ownedEdges.resize(cells);
             w.vertexPrefix.resize(cells);
 
-            needed.fill(0);
-            for (auto it = mask.beginOn(); it; ++it) {
-                const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
-                for (int c = 0; c < 8; ++c) needed[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))] = 1;
-            }
-            field.sampleNodes(frame, {w.origin.x(), w.origin.y(), w.origin.z()}, {kN, kN, kN}, needed.data(), vals.data());
+            sampleLeafNodes(field, frame, leaf, needed, vals);
             moved.fill(0);
             if (deformation) {
-                for (int z = 0; z < kN; ++z)
-                    for (int y = 0; y < kN; ++y)
-                        for (int x = 0; x < kN; ++x) {
-                            const std::size_t i = std::size_t(nodeIndex(x, y, z));
+                for (int z = 0; z < kLeafNodesPerSide; ++z)
+                    for (int y = 0; y < kLeafNodesPerSide; ++y)
+                        for (int x = 0; x < kLeafNodesPerSide; ++x) {
+                            const std::size_t i = std::size_t(leafNodeIndex(x, y, z));
                             if (!needed[i]) continue;
                             const Coord n = w.origin.offsetBy(x, y, z);
                             openvdb::Vec3f off;
@@ -178,7 +170,7 @@ void LatticeSurface::Impl::firstPass() {
             }
             auto nodePos = [&](const Vec3i& local) {
                 const Vec3d p = frame.nodeWorld(Vec3i(w.origin.x() + local.x, w.origin.y() + local.y, w.origin.z() + local.z));
-                const std::size_t i = std::size_t(nodeIndex(local.x, local.y, local.z));
+                const std::size_t i = std::size_t(leafNodeIndex(local.x, local.y, local.z));
                 return moved[i] ? p + Vec3d(offsets[i]) : p;
             };
 
@@ -187,7 +179,7 @@ void LatticeSurface::Impl::firstPass() {
                 const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
                 unsigned config = 0;
                 for (int c = 0; c < 8; ++c) {
-                    const std::size_t i = std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)));
+                    const std::size_t i = std::size_t(leafCornerIndex(it.pos(), c));
                     if (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side)) config |= 1u << c;
                 }
                 w.config[rank] = std::uint8_t(config);
@@ -210,8 +202,8 @@ void LatticeSurface::Impl::firstPass() {
                     const Vec3i la(x + eo.x, y + eo.y, z + eo.z);
                     Vec3i lb = la;
                     lb[std::size_t(axis)] += 1;
-                    const std::size_t ia = std::size_t(nodeIndex(la.x, la.y, la.z));
-                    const std::size_t ib = std::size_t(nodeIndex(lb.x, lb.y, lb.z));
+                    const std::size_t ia = std::size_t(leafNodeIndex(la.x, la.y, la.z));
+                    const std::size_t ib = std::size_t(leafNodeIndex(lb.x, lb.y, lb.z));
                     const double va = vals[ia], vb = vals[ib];
                     const Vec3d pa = nodePos(la), pb = nodePos(lb);
                     // A node exactly at the iso value carries the crossing of each of its edges:

@@ -4,6 +4,7 @@
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/progress.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/dmc/leaf_nodes.h"
 #include "vdbsurf/lattice/lattice.h"
 
 #include <openvdb/tree/LeafManager.h>
@@ -25,8 +26,6 @@ int thinSearchSamplesPerAxis(int steps) { return int(std::ceil(steps * std::sqrt
 namespace {
 
 using MaskLeaf = openvdb::MaskTree::LeafNodeType;
-constexpr int kN = 9;
-inline int nodeIndex(int x, int y, int z) { return x + kN * y + kN * kN * z; }
 
 // Does marching cubes separate two nodes of one side that meet across a diagonal of this cell
 // (inside nodes across a face, either side across the cell)? Then the field may join them.
@@ -54,25 +53,19 @@ void classifyCells(const Field& field, const Lattice& lattice, double iso, const
     std::vector<std::uint64_t> hiddenPerLeaf(leaves.leafCount(), 0);
     const Inside side = field.inside();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
-        std::array<double, kN * kN * kN> vals;
-        std::array<std::uint8_t, kN * kN * kN> needed;
+        std::array<double, kLeafNodeCount> vals;
+        std::array<std::uint8_t, kLeafNodeCount> needed;
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
             if (cancel) cancel->check();
             const MaskLeaf& leaf = leaves.leaf(li);
             const Coord o = leaf.origin();
-            needed.fill(0);
-            for (auto it = leaf.cbeginValueOn(); it; ++it) {
-                const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
-                for (int c = 0; c < 8; ++c) needed[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))] = 1;
-            }
-            field.sampleNodes(lattice.frame, {o.x(), o.y(), o.z()}, {kN, kN, kN}, needed.data(), vals.data());
+            sampleLeafNodes(field, lattice.frame, leaf, needed, vals);
             auto& out = perLeaf[li];
             for (auto it = leaf.cbeginValueOn(); it; ++it) {
                 const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
                 unsigned config = 0;
                 for (int c = 0; c < 8; ++c)
-                    if (isInside(vals[std::size_t(nodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)))], iso, side))
-                        config |= 1u << c;
+                    if (isInside(vals[std::size_t(leafCornerIndex(it.pos(), c))], iso, side)) config |= 1u << c;
                 std::vector<Coord>* to = nullptr;
                 if (config == 0 || config == 255) {
                     ++hiddenPerLeaf[li];
