@@ -174,4 +174,34 @@ TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output
     expectFailure(dir, {"mesh", "--expr", "x", "--bbox", "1,2,3", "--voxel-size", "0.1", "-o", out}, "--bbox", "6", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "-o", dir.path("out.stl")}, "out.stl", "unsupported", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "-o", dir.path("no/such/folder/out.obj")}, "out.obj", "does not exist", before);
+    expectFailure(dir, {"compare", dir.path("missing.vdb")}, "missing.vdb", "no such file", before);
+    expectFailure(dir, {"compare", dir.path("text.vdb")}, "text.vdb", "not an OpenVDB file", before);
+    expectFailure(dir, {"compare", dir.path("good.obj")}, "good.obj", "compare takes a .vdb", before);
+    expectFailure(dir, {"compare", dir.path("vector.vdb")}, "vector.vdb", "no float or double grid", before);
+    expectFailure(dir, {"compare", dir.path("good.vdb"), "--voxel-size", "-0.1"}, "--voxel-size", "positive", before);
+    expectFailure(dir, {"compare", dir.path("good.vdb"), "--iso", "7"}, "good.vdb", "no surface", before);
+    expectFailure(dir, {"compare", dir.path("good.vdb"), "--json", dir.path("no/such/folder/r.json")}, "r.json", "does not exist",
+                  before);
+}
+
+TEST_CASE("compare prints volumeToMesh, mc and dmc side by side and writes JSON") {
+    test::TempDir dir;
+    initializeOpenVdb();
+    writeSphereFile(dir.path("sphere.vdb"), 0.05);
+    const auto r = runVdbsurf({"compare", dir.path("sphere.vdb"), "--voxel-size", "0.15", "--json", dir.path("r.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    for (const char* word : {"volumeToMesh", "vdbsurf mc", "vdbsurf dmc", "covers H", "F-score", "resampled"})
+        CHECK(r.output.find(word) != std::string::npos);
+    const auto j = nlohmann::json::parse(test::readFile(dir.path("r.json")));
+    CHECK(j["voxel_size"].get<double>() == Approx(0.15));
+    CHECK(j["grid_voxel_size"].get<double>() == Approx(0.05));
+    REQUIRE(j["rows"].size() == 3);
+    for (const auto& row : j["rows"]) {
+        INFO(row.dump());
+        CHECK(row["coverage_one_h"].get<double>() > 0.999);
+        CHECK(row["f_score_quarter_h"].get<double>() > 0.95);
+        CHECK(row["components"].get<int>() == 1);
+        CHECK(row["polygons"].get<int>() > 500); // a sphere of radius 1 at H = 0.15: about 800
+    }
 }

@@ -4,6 +4,7 @@
 #include "vdbsurf/mesh/mesh.h"
 #include "vdbsurf/vdb/openvdb_fwd.h"
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,9 @@ namespace vdbsurf::test {
 GridBasePtr makeSphereLevelSet(double radius, const Vec3d& center, double voxelSize);
 // Torus around the z axis (major radius R, minor radius r), from its exact signed distance.
 GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double voxelSize);
+// Level set of any signed distance function over a box: exact values within 3 voxels of the
+// surface, signs flooded elsewhere.
+GridBasePtr makeLevelSetFromDistance(const std::function<double(const Vec3d&)>& sdf, const Box3& box, double voxelSize);
 // Fog volume: 1 inside the sphere, smooth ramp to 0 over `ramp` world units outside.
 GridBasePtr makeSphereFog(double radius, double ramp, double voxelSize);
 

@@ -1,10 +1,12 @@
 #include "cli_common.h"
 
+#include "vdbsurf/core/atomic_file.h"
 #include "vdbsurf/core/error.h"
 
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
 #include <sstream>
 
@@ -17,6 +19,17 @@ Globals& globals() {
 
 void note(const std::string& text) {
     if (!globals().quiet) std::cerr << "vdbsurf: " << text << "\n";
+}
+
+void writeJsonFile(const std::string& path, const nlohmann::json& j) {
+    AtomicFile target(path);
+    {
+        std::ofstream out(target.tempPath());
+        out << j.dump(2) << "\n";
+        out.close();
+        if (!out) throw Error(path, "cannot write");
+    }
+    target.commit();
 }
 
 std::vector<double> parseNumbers(const std::string& option, const std::string& text, std::size_t count) {

@@ -4,6 +4,7 @@
 #include "vdbsurf/core/vec3.h"
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <functional>
 #include <string>
@@ -28,6 +29,9 @@ void note(const std::string& text);
 std::vector<double> parseNumbers(const std::string& option, const std::string& text, std::size_t count);
 Box3 parseBox(const std::string& option, const std::string& text);
 
+// Writes j (indented) to path atomically; throws Error naming path.
+void writeJsonFile(const std::string& path, const nlohmann::json& j);
+
 // Runs a subcommand body, mapping exceptions to messages and exit codes.
 int runGuarded(const std::function<void()>& body);
 
@@ -35,5 +39,6 @@ int runGuarded(const std::function<void()>& body);
 using Action = std::function<void()>;
 Action addInfoCommand(CLI::App& app);
 Action addMeshCommand(CLI::App& app);
+Action addCompareCommand(CLI::App& app);
 
 } // namespace vdbsurf::cli

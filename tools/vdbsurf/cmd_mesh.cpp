@@ -42,17 +42,6 @@ struct MeshOptions {
     bool triangles = false, noThin = false, noSharp = false;
 };
 
-void writeJsonFile(const std::string& path, const nlohmann::json& j) {
-    AtomicFile target(path);
-    {
-        std::ofstream out(target.tempPath());
-        out << j.dump(2) << "\n";
-        out.close();
-        if (!out) throw Error(path, "cannot write");
-    }
-    target.commit();
-}
-
 void runMesh(const MeshOptions& o) {
     const auto t0 = Clock::now();
     if (o.input.empty() == o.expr.empty())

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
     };
     add(&cli::addInfoCommand);
     add(&cli::addMeshCommand);
+    add(&cli::addCompareCommand);
 
     try {
         app.parse(argc, argv);

@@ -1,0 +1,124 @@
+// Quality measures and the comparison behind `vdbsurf compare`: distances to an iso surface
+// against the closed form, coverage of a mesh that misses half the surface, and DMC against
+// OpenVDB's volumeToMesh on a plate thinner than a cell.
+#include "support/test_support.h"
+
+#include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/field/expression_field.h"
+#include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/quality/compare.h"
+#include "vdbsurf/quality/surface_quality.h"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+
+using namespace vdbsurf;
+
+TEST_CASE("distance to the iso surface matches the closed form of a sphere, inside and out") {
+    // Not a distance field: value r^2 - 1, so a projection by the value alone would be wrong.
+    const ExpressionField sphere("x^2+y^2+z^2-1", {{-2, -2, -2}, {2, 2, 2}});
+    std::mt19937 rng(7);
+    std::normal_distribution<double> g;
+    std::uniform_real_distribution<double> offset(-0.3, 0.3);
+    for (int i = 0; i < 200; ++i) {
+        const Vec3d dir = normalized(Vec3d(g(rng), g(rng), g(rng)));
+        const double d = offset(rng);
+        const Vec3d p = dir * (1.0 + d);
+        CHECK(distanceToIsoSurface(sphere, 0.0, p, 1.0) == Approx(std::fabs(d)).margin(1e-6));
+    }
+    // Farther than the cap: the cap.
+    CHECK(distanceToIsoSurface(sphere, 0.0, {0, 0, 1.8}, 0.5) == 0.5);
+}
+
+TEST_CASE("surface quality: a full sphere mesh is accurate and covers, half of it covers half") {
+    const ExpressionField sphere("x^2+y^2+z^2-1", {{-1.3, -1.3, -1.3}, {1.3, 1.3, 1.3}});
+    const double h = 0.1;
+    MeshRequest req;
+    req.voxelSize = h;
+    req.method = MeshMethod::MarchingCubes;
+    MeshReport rep;
+    const Mesh full = meshField(sphere, req, rep);
+    const std::vector<Vec3d> surface = isoSurfaceSamples(sphere, 0.0, h / 4);
+    REQUIRE(surface.size() > 1000);
+
+    const SurfaceQuality q = measureSurfaceQuality(full, sphere, 0.0, surface, h);
+    CHECK(q.coverageOne == 1.0);
+    CHECK(q.coverageQuarter > 0.99);
+    CHECK(q.accuracyQuarter > 0.99);
+    CHECK(q.meanDistance < 0.05 * h);
+    CHECK(q.fScoreQuarter > 0.99);
+
+    Mesh half; // the polygons whose first vertex has z > 0
+    half.points = full.points;
+    for (std::size_t p = 0; p < full.polygonCount(); ++p)
+        if (full.points[full.polygon(p)[0]].z > 0) half.addPolygon(full.polygon(p), full.polygonSize(p));
+    const SurfaceQuality hq = measureSurfaceQuality(half, sphere, 0.0, surface, h);
+    CHECK(hq.coverageOne == Approx(0.5).margin(0.06));
+    CHECK(hq.accuracyQuarter > 0.99); // what is there is still on the surface
+    CHECK(hq.fScoreQuarter < 0.75);
+
+    Mesh shifted = full; // moved by half a cell: accurate nowhere within h/4, covered within h
+    for (Vec3f& p : shifted.points) p.x += float(0.5 * h);
+    const SurfaceQuality sq = measureSurfaceQuality(shifted, sphere, 0.0, surface, h);
+    CHECK(sq.coverageOne == 1.0);
+    CHECK(sq.coverageQuarter < 0.8);
+    CHECK(sq.meanDistance > 0.2 * h);
+}
+
+TEST_CASE("compare: on a plate a third of a cell thick DMC covers what volumeToMesh loses") {
+    // A disk of thickness 0.3 H at an oblique angle, as a level set at H/5, meshed at H.
+    const double H = 0.1;
+    const Vec3d n = normalized(Vec3d(0.3, 0.5, 0.8));
+    auto grid = test::makeLevelSetFromDistance(
+        [&](const Vec3d& p) {
+            const double across = std::fabs(dot(p, n)) - 0.15 * H;
+            const double radial = length(p - n * dot(p, n)) - 0.6;
+            return std::max(across, radial);
+        },
+        {{-0.8, -0.8, -0.8}, {0.8, 0.8, 0.8}}, H / 5);
+    const GridField field(grid, "plate");
+    CompareRequest req;
+    req.voxelSize = H;
+    const CompareReport rep = compareMeshers(field, req);
+    REQUIRE(rep.rows.size() == 3);
+    CHECK(rep.resampled);
+    CHECK(rep.surfaceSamples > 5000);
+    for (const CompareRow& r : rep.rows)
+        WARN(r.method << ": coverage H/4 " << r.quality.coverageQuarter << " H " << r.quality.coverageOne << " accuracy H/4 "
+                      << r.quality.accuracyQuarter << " F " << r.quality.fScoreQuarter << " pieces " << r.components);
+    const CompareRow& vtm = rep.rows[0];
+    const CompareRow& mc = rep.rows[1];
+    const CompareRow& dmc = rep.rows[2];
+    CHECK(vtm.method == "volumeToMesh");
+    CHECK(dmc.method == "vdbsurf dmc");
+    INFO("coverage within H: volumeToMesh " << vtm.quality.coverageOne << ", mc " << mc.quality.coverageOne << ", dmc "
+                                            << dmc.quality.coverageOne);
+    CHECK(dmc.quality.coverageOne >= 0.99);
+    CHECK(vtm.quality.coverageOne < 0.95);
+    // Within H/4 the difference is stark: marching cubes only meets the plate where a node lies in it.
+    CHECK(dmc.quality.fScoreQuarter > 0.95);
+    CHECK(vtm.quality.fScoreQuarter < 0.5);
+    CHECK(mc.quality.fScoreQuarter < 0.5);
+    CHECK(vtm.components > 1);
+    CHECK(dmc.components == 1);
+    CHECK(dmc.topology.closedManifoldOriented());
+    CHECK(dmc.quality.p95Distance < 0.5 * H);
+}
+
+TEST_CASE("compare at the grid's own voxel size: every mesher is exact on a sphere level set") {
+    auto grid = test::makeSphereLevelSet(1.0, {0.013, -0.021, 0.007}, 0.05);
+    const GridField field(grid, "sphere");
+    const CompareReport rep = compareMeshers(field, {});
+    CHECK_FALSE(rep.resampled);
+    CHECK(rep.voxelSize == Approx(0.05));
+    for (const CompareRow& r : rep.rows) {
+        INFO(r.method);
+        CHECK(r.quality.coverageQuarter > 0.999);
+        CHECK(r.quality.accuracyQuarter > 0.999);
+        CHECK(r.components == 1);
+    }
+    // Same lattice, same field: volumeToMesh and our marching cubes put vertices at the same places.
+    CHECK(double(rep.rows[0].vertices) == Approx(double(rep.rows[1].vertices)).epsilon(0.001));
+}
