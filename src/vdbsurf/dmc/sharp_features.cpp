@@ -28,6 +28,15 @@ constexpr double kMinSine = 0.25;
 // A feature point farther than this from the surface (in cells, estimated as |f - iso| / |∇f|)
 // is an artefact of curvature or of sampling, not a feature.
 constexpr double kMaxSurfaceDistance = 0.2;
+// A true edge or corner joins faces that are flat at the scale of a cell: the segment from the
+// feature point to each crossing that defined it lies on that crossing's tangent plane and on the
+// surface. Where the surface is merely curved (noisy fog, a rounded blob) the tangent planes meet
+// off the surface and the segment's midpoint strays from it by more than this (in cells).
+constexpr double kMaxFaceBend = 0.1;
+// On flat faces every crossing's normal is one of the faces' normals; on a curved surface the
+// normals fan out between them. A crossing whose normal is farther than this (cosine) from every
+// plane that defined the feature means curvature, not a feature.
+constexpr double kFaceNormalAgreement = 0.95;
 
 struct Proposal {
     Coord node;
@@ -83,11 +92,17 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         std::uint64_t edgeCells = 0, cornerCells = 0, rejected = 0;
     };
     tbb::enumerable_thread_specific<Local> locals;
-    auto nearSurface = [&](const Vec3d& p) {
+    auto within = [&](const Vec3d& p, double cells) {
         const Vec3d g = field.gradient(p);
         const double len = length(g);
         if (!(len > 0) || !std::isfinite(len)) return false;
-        return std::fabs(field.value(p) - iso) <= kMaxSurfaceDistance * h * len;
+        return std::fabs(field.value(p) - iso) <= cells * h * len;
+    };
+    auto nearSurface = [&](const Vec3d& p) { return within(p, kMaxSurfaceDistance); };
+    auto facesFlat = [&](const Vec3d& feature, std::initializer_list<Vec3d> crossings) {
+        for (const Vec3d& c : crossings)
+            if (!within(0.5 * (feature + c), kMaxFaceBend)) return false;
+        return true;
     };
 
     surface.forEachSurfaceCell([&](const CellCrossings& cc) {
@@ -118,6 +133,18 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const double d = std::fabs(dot(n[i], edgeDir));
             if (d > phi) phi = d, third = i;
         }
+        auto normalsCluster = [&](std::initializer_list<int> planes) {
+            for (int i = 0; i < count; ++i) {
+                bool agrees = false;
+                for (int k : planes) agrees = agrees || dot(n[i], n[k]) >= kFaceNormalAgreement;
+                if (!agrees) return false;
+            }
+            return true;
+        };
+        if (!(third >= 0 ? normalsCluster({a, b, third}) : normalsCluster({a, b}))) {
+            ++local.rejected;
+            return;
+        }
         Proposal p;
         p.cell = cc.cell;
         if (third >= 0) {
@@ -125,7 +152,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const Vec3d planes[3] = {n[a], n[b], n[third]};
             const double rhs[3] = {dot(n[a], c[a]), dot(n[b], c[b]), dot(n[third], c[third])};
             Vec3d corner;
-                if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner)) {
+            if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner) ||
+                !facesFlat(corner, {c[a], c[b], c[third]})) {
                 ++local.rejected;
                 return;
             }
@@ -157,7 +185,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 p.point = q;
                 p.distance = dist;
             }
-            if (!(best < INFINITY) || !nearSurface(p.point)) {
+            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[a], c[b]})) {
                 ++local.rejected;
                 return;
             }
