@@ -40,5 +40,7 @@ using Action = std::function<void()>;
 Action addInfoCommand(CLI::App& app);
 Action addMeshCommand(CLI::App& app);
 Action addCompareCommand(CLI::App& app);
+Action addRasterizeCommand(CLI::App& app);
+Action addEditCommand(CLI::App& app);
 
 } // namespace vdbsurf::cli

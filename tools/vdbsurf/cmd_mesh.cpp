@@ -6,6 +6,7 @@
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/threads.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/density/scene_json.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/lattice/lattice.h"
 #include "vdbsurf/field/expression_field.h"
@@ -74,7 +75,17 @@ void runMesh(const MeshOptions& o) {
         field = std::make_unique<ExpressionField>(o.expr, parseBox("--bbox", o.bbox));
         source = "expr: " + o.expr;
     } else {
-        if (meshFormatOf(o.input) != MeshFormat::Vdb) throw Error(o.input, "unsupported input; give a .vdb file or --expr FORMULA");
+        const bool scene = o.input.size() > 5 && o.input.substr(o.input.size() - 5) == ".json";
+        if (scene) {
+            if (!o.grid.empty()) throw Error("--grid", "applies only to .vdb input");
+            if (inside) throw Error("--inside", "applies only to .vdb input (a scene is dense inside)");
+            field = std::make_unique<DensityScene>(readSceneFile(o.input));
+            source = o.input;
+        } else if (meshFormatOf(o.input) != MeshFormat::Vdb) {
+            throw Error(o.input, "unsupported input; give a .vdb file, a scene .json or --expr FORMULA");
+        }
+    }
+    if (!field) {
         const LoadedGrid loaded = readScalarGrid(o.input, o.grid);
         source = o.input + ":" + loaded.name;
         auto gf = std::make_unique<GridField>(loaded.grid, source, inside);

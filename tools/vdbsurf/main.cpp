@@ -20,6 +20,8 @@ int main(int argc, char** argv) {
     add(&cli::addInfoCommand);
     add(&cli::addMeshCommand);
     add(&cli::addCompareCommand);
+    add(&cli::addRasterizeCommand);
+    add(&cli::addEditCommand);
 
     try {
         app.parse(argc, argv);

@@ -1,0 +1,74 @@
+// One density primitive of seed 003: a core (ellipsoid or box) where the density is its weight,
+// falling off smoothly with the distance to the core's surface over the influence width, zero
+// beyond. Owns the falloff function, exact distances to the cores, and per-primitive bounds over
+// a box. Scenes (scene.h) sum primitives; the rasterizer and the mesher only see the scene.
+#pragma once
+#include "vdbsurf/core/vec3.h"
+
+#include <string>
+
+namespace vdbsurf {
+
+enum class CoreShape { Ellipsoid, Box };
+enum class DensityOp { Add, Subtract };
+
+// The falloff s(t) over t = distance / falloff: 1 - 3t² + 2t³ on [0, 1], 0 beyond. The cubic
+// Hermite step is the lowest-degree polynomial with s(0) = 1, s(1) = 0 and zero slope at both
+// ends, so the density is C1 where the core ends and where the influence ends; and s(1/2) = 1/2,
+// so a lone primitive of weight 1 has its 0.5 surface exactly half the falloff outside its core.
+double falloffValue(double t);
+double falloffSlope(double t); // ds/dt
+
+struct Primitive {
+    std::string name;           // optional label, for messages
+    CoreShape core = CoreShape::Ellipsoid;
+    Vec3d center;
+    Vec3d size{1, 1, 1};        // radii (ellipsoid) or half extents (box), > 0
+    Vec3d rotationDegrees;      // about x, then y, then z
+    double falloff = 0.5;       // influence width beyond the core, > 0
+    double weight = 1.0;        // density in the core, > 0
+    DensityOp op = DensityOp::Add;
+};
+
+// A primitive prepared for evaluation: its rotation as a matrix and its bounding boxes.
+class PreparedPrimitive {
+public:
+    explicit PreparedPrimitive(const Primitive& p);
+
+    const Primitive& primitive() const { return mP; }
+    double sign() const { return mP.op == DensityOp::Add ? 1.0 : -1.0; }
+
+    // Distance from p to the core (0 inside it), and its gradient (zero inside).
+    double coreDistance(const Vec3d& p) const;
+    double coreDistance(const Vec3d& p, Vec3d& gradient) const;
+    bool inCore(const Vec3d& p) const;
+
+    // This primitive's own density (weight · s(d / falloff)), unsigned.
+    double density(const Vec3d& p) const;
+    Vec3d densityGradient(const Vec3d& p) const;
+    // 0: outside the influence, 1: 0 < ρ < 0.5, 2: 0.5 ≤ ρ < weight, 3: the core (seed 003's areas).
+    int area(const Vec3d& p) const;
+
+    // Conservative bounds of density() over a box: the distance to a convex core is convex, so
+    // its maximum over the box is at a corner (exact); its minimum is bounded by the centre's
+    // distance less the half diagonal (distance is 1-Lipschitz).
+    void densityBounds(const Box3& box, double& lo, double& hi) const;
+
+    // Where the density can be non-zero (core grown by the falloff), and the core's own box.
+    const Box3& influenceBox() const { return mInfluence; }
+    const Box3& coreBox() const { return mCoreBox; }
+
+private:
+    Vec3d toLocal(const Vec3d& p) const;
+    Vec3d toWorld(const Vec3d& v) const;
+    Primitive mP;
+    double mR[3][3]; // local -> world rotation (columns: the local axes in world)
+    Box3 mInfluence, mCoreBox;
+};
+
+// Exact distance from a point to the surface of an axis-aligned ellipsoid (radii r, centred at
+// the origin) for a point outside it, and the closest point; by bisection on the Lagrange
+// multiplier (the point's outside, so the root is bracketed and unique).
+double ellipsoidDistance(const Vec3d& radii, const Vec3d& p, Vec3d& closest);
+
+} // namespace vdbsurf

@@ -1,0 +1,197 @@
+#include "vdbsurf/density/scene_json.h"
+
+#include "vdbsurf/core/error.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+namespace vdbsurf {
+
+namespace {
+
+using json = nlohmann::json;
+
+std::string shortDump(const json& j) {
+    std::string s = j.dump();
+    return s.size() > 60 ? s.substr(0, 57) + "..." : s;
+}
+
+struct Where {
+    const std::string& source;
+    std::string primitive; // "primitive 2 (\"box\")"
+    Error error(const std::string& field, const std::string& what) const {
+        return Error(source, primitive + ": '" + field + "' " + what);
+    }
+};
+
+double number(const Where& w, const json& j, const std::string& field) {
+    if (!j.is_number()) throw w.error(field, "must be a number, not " + shortDump(j));
+    const double v = j.get<double>();
+    if (!std::isfinite(v)) throw w.error(field, "must be finite");
+    return v;
+}
+
+Vec3d triple(const Where& w, const json& j, const std::string& field) {
+    if (!j.is_array() || j.size() != 3) throw w.error(field, "must be an array of 3 numbers, not " + shortDump(j));
+    return {number(w, j[0], field), number(w, j[1], field), number(w, j[2], field)};
+}
+
+Primitive parsePrimitive(const json& j, std::size_t index, const std::string& source) {
+    Where w{source, "primitive " + std::to_string(index)};
+    if (!j.is_object()) throw Error(source, w.primitive + ": must be an object, not " + shortDump(j));
+    if (!j.contains("core")) throw Error(source, w.primitive + ": 'core' is missing (\"ellipsoid\" or \"box\")");
+    const json& core = j["core"];
+    if (!core.is_string() || (core != "ellipsoid" && core != "box"))
+        throw w.error("core", "must be \"ellipsoid\" or \"box\", not " + shortDump(core));
+    Primitive p;
+    p.core = core == "box" ? CoreShape::Box : CoreShape::Ellipsoid;
+    w.primitive += " (" + core.get<std::string>() + ")";
+    const char* sizeField = p.core == CoreShape::Box ? "half_extents" : "radii";
+    const std::set<std::string> allowed = {"core", "center", sizeField, "rotation", "falloff", "weight", "op", "name"};
+    for (auto it = j.begin(); it != j.end(); ++it)
+        if (!allowed.count(it.key())) {
+            std::string list;
+            for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+            throw w.error(it.key(), "is not a field of a " + core.get<std::string>() + " primitive (fields: " + list + ")");
+        }
+    if (j.contains("name")) {
+        if (!j["name"].is_string()) throw w.error("name", "must be a string");
+        p.name = j["name"].get<std::string>();
+        w.primitive = "primitive " + std::to_string(index) + " (\"" + p.name + "\")";
+    }
+    for (const char* required : {"center", sizeField, "falloff"})
+        if (!j.contains(required)) throw w.error(required, "is missing");
+    p.center = triple(w, j["center"], "center");
+    p.size = triple(w, j[sizeField], sizeField);
+    for (int i = 0; i < 3; ++i)
+        if (!(p.size[i] > 0)) throw w.error(sizeField, "must be positive on every axis, not " + shortDump(j[sizeField]));
+    if (j.contains("rotation")) p.rotationDegrees = triple(w, j["rotation"], "rotation");
+    p.falloff = number(w, j["falloff"], "falloff");
+    if (!(p.falloff > 0)) throw w.error("falloff", "must be positive (the width of the influence beyond the core), not " + shortDump(j["falloff"]));
+    if (j.contains("weight")) {
+        p.weight = number(w, j["weight"], "weight");
+        if (!(p.weight > 0)) throw w.error("weight", "must be positive, not " + shortDump(j["weight"]));
+    }
+    if (j.contains("op")) {
+        const json& op = j["op"];
+        if (!op.is_string() || (op != "add" && op != "subtract"))
+            throw w.error("op", "must be \"add\" or \"subtract\", not " + shortDump(op));
+        p.op = op == "add" ? DensityOp::Add : DensityOp::Subtract;
+    }
+    return p;
+}
+
+DensityScene parseSceneJson(const json& doc, const std::string& source) {
+    if (!doc.is_object()) throw Error(source, "a scene must be a JSON object with \"primitives\"");
+    for (auto it = doc.begin(); it != doc.end(); ++it)
+        if (it.key() != "primitives" && it.key() != "voxel_size")
+            throw Error(source, "'" + it.key() + "' is not a scene field (fields: primitives, voxel_size)");
+    if (!doc.contains("primitives") || !doc["primitives"].is_array())
+        throw Error(source, "'primitives' must be an array of primitives");
+    std::vector<Primitive> prims;
+    for (std::size_t i = 0; i < doc["primitives"].size(); ++i) prims.push_back(parsePrimitive(doc["primitives"][i], i, source));
+    std::optional<double> voxel;
+    if (doc.contains("voxel_size")) {
+        const json& v = doc["voxel_size"];
+        if (!v.is_number() || !(v.get<double>() > 0) || !std::isfinite(v.get<double>()))
+            throw Error(source, "'voxel_size' must be a positive number, not " + shortDump(v));
+        voxel = v.get<double>();
+    }
+    return DensityScene(std::move(prims), source, voxel);
+}
+
+json parseText(const std::string& text, const std::string& source) {
+    try {
+        return json::parse(text);
+    } catch (const json::parse_error& e) {
+        std::string what = e.what();
+        const auto colon = what.find("parse error");
+        throw Error(source, "is not valid JSON (" + (colon == std::string::npos ? what : what.substr(colon)) + ")");
+    }
+}
+
+json primitiveJson(const Primitive& p) {
+    json j{{"core", p.core == CoreShape::Box ? "box" : "ellipsoid"},
+           {"center", {p.center.x, p.center.y, p.center.z}},
+           {p.core == CoreShape::Box ? "half_extents" : "radii", {p.size.x, p.size.y, p.size.z}},
+           {"rotation", {p.rotationDegrees.x, p.rotationDegrees.y, p.rotationDegrees.z}},
+           {"falloff", p.falloff},
+           {"weight", p.weight},
+           {"op", p.op == DensityOp::Add ? "add" : "subtract"}};
+    if (!p.name.empty()) j["name"] = p.name;
+    return j;
+}
+
+} // namespace
+
+DensityScene parseSceneText(const std::string& text, const std::string& source) {
+    return parseSceneJson(parseText(text, source), source);
+}
+
+DensityScene readSceneFile(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error(path, "cannot open (no such file, or not readable)");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return parseSceneText(ss.str(), path);
+}
+
+std::string sceneToJsonText(const std::vector<Primitive>& primitives, std::optional<double> voxelSize) {
+    json doc;
+    doc["primitives"] = json::array();
+    for (const Primitive& p : primitives) doc["primitives"].push_back(primitiveJson(p));
+    if (voxelSize) doc["voxel_size"] = *voxelSize;
+    return doc.dump(2) + "\n";
+}
+
+std::string applySceneAssignment(const std::string& sceneJson, const std::string& assignment, const std::string& source) {
+    const auto eq = assignment.find('=');
+    const auto dot = assignment.find('.');
+    if (eq == std::string::npos || dot == std::string::npos || dot > eq)
+        throw Error(assignment, "expected N.field=value, e.g. 0.center=1,0,0");
+    const std::string indexText = assignment.substr(0, dot), field = assignment.substr(dot + 1, eq - dot - 1),
+                      valueText = assignment.substr(eq + 1);
+    std::size_t used = 0;
+    long index = -1;
+    try {
+        index = std::stol(indexText, &used);
+    } catch (...) {
+    }
+    json doc = parseText(sceneJson, source);
+    const std::size_t count = doc.contains("primitives") && doc["primitives"].is_array() ? doc["primitives"].size() : 0;
+    if (used != indexText.size() || index < 0 || std::size_t(index) >= count)
+        throw Error(assignment, "no primitive " + indexText + " (the scene has " + std::to_string(count) + ", numbered from 0)");
+    json value;
+    try {
+        value = json::parse(valueText);
+    } catch (const json::parse_error&) {
+        // Numbers separated by commas become an array; anything else a string.
+        json list = json::array();
+        std::stringstream ss(valueText);
+        std::string item;
+        bool numbers = !valueText.empty();
+        while (numbers && std::getline(ss, item, ',')) {
+            try {
+                list.push_back(json::parse(item));
+                numbers = list.back().is_number();
+            } catch (const json::parse_error&) {
+                numbers = false;
+            }
+        }
+        value = numbers ? list : json(valueText);
+    }
+    doc["primitives"][std::size_t(index)][field] = value;
+    const std::string out = doc.dump(2) + "\n";
+    try {
+        parseSceneJson(doc, source);
+    } catch (const Error& e) {
+        throw Error(assignment, std::string(e.what()).substr(source.size() + 2));
+    }
+    return out;
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,21 @@
+// Scene files: the JSON form of a density scene (schema in the README), read with every
+// mistake reported as one Error naming the file, the primitive and the field; and written back.
+#pragma once
+#include "vdbsurf/density/scene.h"
+
+#include <string>
+
+namespace vdbsurf {
+
+// source: the file name used in messages.
+DensityScene parseSceneText(const std::string& text, const std::string& source);
+DensityScene readSceneFile(const std::string& path);
+
+// The scene as JSON text (every field spelled out), readable by parseSceneText.
+std::string sceneToJsonText(const std::vector<Primitive>& primitives, std::optional<double> voxelSize);
+
+// Applies "N.field=value" to the scene's JSON (value: JSON, or numbers separated by commas, or a
+// bare word) and validates the result; throws Error naming `assignment`.
+std::string applySceneAssignment(const std::string& sceneJson, const std::string& assignment, const std::string& source);
+
+} // namespace vdbsurf

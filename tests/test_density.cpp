@@ -1,0 +1,363 @@
+// Density primitives (seed 003): values against closed forms, conservative bounds, sparse
+// rasterization against dense evaluation, tiles, surface-only rasterization, edits against full
+// rebuilds, and the meshed 0.5 surface where the falloff puts it.
+#include "support/test_support.h"
+
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/core/threads.h"
+#include "vdbsurf/density/rasterize.h"
+#include "vdbsurf/density/scene_json.h"
+#include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/mesh/mesh_check.h"
+#include "vdbsurf/vdb/vdb_file.h"
+
+#include <catch2/catch.hpp>
+#include <openvdb/openvdb.h>
+
+#include <cmath>
+#include <random>
+
+using namespace vdbsurf;
+
+namespace {
+
+Primitive ellipsoid(Vec3d c, Vec3d r, double falloff, Vec3d rot = {}, DensityOp op = DensityOp::Add, double weight = 1) {
+    Primitive p;
+    p.core = CoreShape::Ellipsoid;
+    p.center = c;
+    p.size = r;
+    p.falloff = falloff;
+    p.rotationDegrees = rot;
+    p.op = op;
+    p.weight = weight;
+    return p;
+}
+
+Primitive box(Vec3d c, Vec3d half, double falloff, Vec3d rot = {}, DensityOp op = DensityOp::Add) {
+    Primitive p = ellipsoid(c, half, falloff, rot, op);
+    p.core = CoreShape::Box;
+    return p;
+}
+
+// A scene with overlaps, a rotated box, and a subtraction.
+std::vector<Primitive> testScene() {
+    return {ellipsoid({0, 0, 0}, {0.6, 0.35, 0.3}, 0.3, {10, 20, 30}), box({0.55, 0.1, 0.05}, {0.25, 0.2, 0.15}, 0.2, {0, 35, 15}),
+            ellipsoid({-0.45, 0.2, 0}, {0.2, 0.2, 0.2}, 0.25, {}, DensityOp::Subtract, 0.8),
+            ellipsoid({0.1, -0.55, 0.1}, {0.3, 0.12, 0.12}, 0.2, {0, 0, 70})};
+}
+
+openvdb::FloatGrid::Ptr floatGrid(const GridBasePtr& g) { return openvdb::GridBase::grid<openvdb::FloatGrid>(g); }
+
+// Every voxel either grid holds (active or not, tiles included): same value and state.
+void requireSameVoxels(const openvdb::FloatGrid& a, const openvdb::FloatGrid& b) {
+    std::size_t mismatches = 0;
+    auto compare = [&](const openvdb::FloatGrid& x, const openvdb::FloatGrid& y) {
+        auto acc = y.getConstAccessor();
+        for (auto it = x.cbeginValueAll(); it; ++it) {
+            if (!it.isValueOn() && *it == 0.0f) continue;
+            openvdb::CoordBBox bb;
+            it.getBoundingBox(bb);
+            for (auto c = bb.begin(); c; ++c)
+                if (acc.getValue(*c) != *it || acc.isValueOn(*c) != it.isValueOn()) {
+                    if (mismatches++ < 5) WARN("voxel " << *c << ": " << *it << " vs " << acc.getValue(*c));
+                }
+        }
+    };
+    compare(a, b);
+    compare(b, a);
+    CHECK(mismatches == 0);
+    CHECK(a.activeVoxelCount() == b.activeVoxelCount());
+}
+
+} // namespace
+
+TEST_CASE("falloff is C1 with the 0.5 crossing halfway") {
+    CHECK(falloffValue(0) == 1.0);
+    CHECK(falloffValue(1) == 0.0);
+    CHECK(falloffValue(0.5) == 0.5);
+    CHECK(falloffSlope(0) == 0.0);
+    CHECK(falloffSlope(1) == 0.0);
+    for (double t = 0.01; t < 1; t += 0.01) {
+        CHECK(falloffSlope(t) < 0);
+        CHECK(falloffSlope(t) == Approx((falloffValue(t + 1e-6) - falloffValue(t - 1e-6)) / 2e-6).margin(1e-6));
+    }
+}
+
+TEST_CASE("ellipsoid density against the closed form: axes, and the closest point's conditions") {
+    const Vec3d r(0.9, 0.5, 0.3);
+    const PreparedPrimitive p(ellipsoid({0.1, -0.2, 0.3}, r, 0.4));
+    for (int axis = 0; axis < 3; ++axis)
+        for (double d : {0.01, 0.1, 0.2, 0.35, 0.5}) {
+            Vec3d q(0.1, -0.2, 0.3);
+            q[axis] += r[axis] + d;
+            CHECK(p.coreDistance(q) == Approx(d).margin(1e-12));
+            CHECK(p.density(q) == Approx(d >= 0.4 ? 0.0 : falloffValue(d / 0.4)).margin(1e-12));
+        }
+    CHECK(p.density({0.1, -0.2, 0.3}) == 1.0);
+    CHECK(p.area({0.1, -0.2, 0.3}) == 3);
+
+    // Anywhere outside: the closest point lies on the ellipsoid and p - x is along its normal.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-2, 2);
+    for (int i = 0; i < 500; ++i) {
+        const Vec3d q(u(rng), u(rng), u(rng));
+        Vec3d x;
+        const double d = ellipsoidDistance(r, q, x);
+        const double s = (q.x / r.x) * (q.x / r.x) + (q.y / r.y) * (q.y / r.y) + (q.z / r.z) * (q.z / r.z);
+        if (s <= 1) {
+            CHECK(d == 0);
+            continue;
+        }
+        CHECK((x.x / r.x) * (x.x / r.x) + (x.y / r.y) * (x.y / r.y) + (x.z / r.z) * (x.z / r.z) == Approx(1).margin(1e-9));
+        const Vec3d n = normalized(Vec3d(x.x / (r.x * r.x), x.y / (r.y * r.y), x.z / (r.z * r.z)));
+        CHECK(length(cross(normalized(q - x), n)) < 1e-6);
+        CHECK(dot(q - x, n) > 0);
+        CHECK(d == Approx(length(q - x)));
+    }
+}
+
+TEST_CASE("rotated box density: face, edge and corner regions against the closed form") {
+    const Vec3d half(0.5, 0.3, 0.2), c(0.2, -0.1, 0.4), rot(20, -35, 50);
+    const PreparedPrimitive p(box(c, half, 0.5, rot));
+    // World from local through the same rotation convention (x, then y, then z).
+    const double k = 3.14159265358979323846 / 180;
+    auto world = [&](Vec3d l) {
+        auto rx = [&](Vec3d v, double a) { return Vec3d(v.x, std::cos(a) * v.y - std::sin(a) * v.z, std::sin(a) * v.y + std::cos(a) * v.z); };
+        auto ry = [&](Vec3d v, double a) { return Vec3d(std::cos(a) * v.x + std::sin(a) * v.z, v.y, -std::sin(a) * v.x + std::cos(a) * v.z); };
+        auto rz = [&](Vec3d v, double a) { return Vec3d(std::cos(a) * v.x - std::sin(a) * v.y, std::sin(a) * v.x + std::cos(a) * v.y, v.z); };
+        return c + rz(ry(rx(l, rot.x * k), rot.y * k), rot.z * k);
+    };
+    struct Case {
+        Vec3d local;
+        double distance;
+        int area;
+    };
+    const Case cases[] = {
+        {{0.5 + 0.1, 0.1, -0.1}, 0.1, 2},                            // face
+        {{-0.1, -0.3 - 0.3, 0.05}, 0.3, 1},                          // face, beyond the 0.5 crossing
+        {{0.5 + 0.1, 0.3 + 0.2, 0.0}, std::sqrt(0.05), 2},           // edge
+        {{-0.5 - 0.2, 0.1, -0.2 - 0.2}, std::sqrt(0.08), 1},         // edge
+        {{0.5 + 0.1, -0.3 - 0.1, 0.2 + 0.2}, std::sqrt(0.06), 2},    // corner
+        {{0.5 + 0.4, 0.3 + 0.3, 0.2 + 0.1}, std::sqrt(0.26), 0},     // corner, outside the influence
+        {{0.1, -0.1, 0.05}, 0.0, 3},                                 // core
+    };
+    for (const Case& cs : cases) {
+        const Vec3d q = world(cs.local);
+        INFO("local " << cs.local.x << " " << cs.local.y << " " << cs.local.z);
+        CHECK(p.coreDistance(q) == Approx(cs.distance).margin(1e-12));
+        CHECK(p.density(q) == Approx(falloffValue(cs.distance / 0.5)).margin(1e-12));
+        CHECK(p.area(q) == cs.area);
+    }
+}
+
+TEST_CASE("scene bounds contain every sampled value over random boxes; the gradient matches differences") {
+    const DensityScene scene(testScene(), "test");
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-1.2, 1.2), w(0.005, 0.6), t(0, 1);
+    int straddling = 0;
+    for (int i = 0; i < 400; ++i) {
+        const Vec3d lo(u(rng), u(rng), u(rng));
+        const Box3 b{lo, lo + Vec3d(w(rng), w(rng), w(rng))};
+        const Interval bound = scene.bounds(b);
+        straddling += bound.lo < 0.5 && bound.hi > 0.5;
+        for (int k = 0; k < 200; ++k) {
+            const Vec3d p = b.min + Vec3d(t(rng) * b.extent().x, t(rng) * b.extent().y, t(rng) * b.extent().z);
+            const double v = scene.value(p);
+            CHECK(v >= bound.lo);
+            CHECK(v <= bound.hi);
+        }
+    }
+    CHECK(straddling > 20);
+    for (int i = 0; i < 200; ++i) {
+        const Vec3d p(u(rng), u(rng), u(rng));
+        const double s = scene.sum(p);
+        if (s <= 0.01 || s >= 0.99) continue;
+        const Vec3d g = scene.gradient(p);
+        const double e = 1e-6;
+        for (int a = 0; a < 3; ++a) {
+            Vec3d d;
+            d[a] = e;
+            CHECK(g[a] == Approx((scene.value(p + d) - scene.value(p - d)) / (2 * e)).margin(1e-4));
+        }
+    }
+}
+
+TEST_CASE("sparse rasterization equals dense evaluation at every voxel") {
+    initializeOpenVdb();
+    const DensityScene scene(testScene(), "test");
+    const double h = 0.02;
+    RasterOptions o;
+    o.voxelSize = h;
+    const DensityRaster raster(scene, o);
+    const auto grid = floatGrid(raster.grid());
+    CHECK(grid->getName() == "density");
+    CHECK(grid->getGridClass() == openvdb::GRID_FOG_VOLUME);
+    Vec3i first, last;
+    sceneVoxelRange(scene, h, first, last);
+    first = first - Vec3i(3, 3, 3);
+    last = last + Vec3i(3, 3, 3);
+    const Vec3i dims = last - first + Vec3i(1, 1, 1);
+    std::vector<float> dense(std::size_t(dims.x) * dims.y * dims.z);
+    evaluateDense(scene, h, first, dims, dense.data());
+    auto acc = grid->getConstAccessor();
+    std::size_t wrong = 0, positive = 0;
+    for (int k = 0; k < dims.z; ++k)
+        for (int j = 0; j < dims.y; ++j)
+            for (int i = 0; i < dims.x; ++i) {
+                const openvdb::Coord c(first.x + i, first.y + j, first.z + k);
+                const float v = dense[(std::size_t(k) * dims.y + j) * dims.x + i];
+                positive += v > 0;
+                wrong += acc.getValue(c) != v || acc.isValueOn(c) != (v > 0);
+            }
+    CHECK(wrong == 0);
+    CHECK(positive == grid->activeVoxelCount());
+    // Sparse: far fewer voxels evaluated than the box holds.
+    CHECK(raster.stats().voxelsEvaluated < dense.size() / 2);
+}
+
+TEST_CASE("cores covering whole VDB nodes become constant tiles, without per-voxel work") {
+    initializeOpenVdb();
+    // A box core 3 units wide at voxel size 0.01: 300 voxels across, several 128^3 nodes inside.
+    const DensityScene scene({box({0.2, 0.1, 0}, {1.5, 1.5, 1.5}, 0.1)}, "big box");
+    RasterOptions o;
+    o.voxelSize = 0.01;
+    const DensityRaster raster(scene, o);
+    const auto grid = floatGrid(raster.grid());
+    CHECK(raster.stats().nodeTiles > 0);
+    CHECK(raster.stats().leafTiles > 0);
+    std::size_t tiles = 0;
+    for (auto it = grid->cbeginValueOn(); it; ++it)
+        if (it.isTileValue()) {
+            ++tiles;
+            CHECK(*it == 1.0f);
+        }
+    CHECK(tiles > 0);
+    CHECK(grid->tree().getValue(openvdb::Coord(20, 10, 0)) == 1.0f);
+    // Voxels evaluated follow the falloff shell, not the core's volume.
+    const double shell = 6 * 3.2 * 3.2 * (0.1 + 0.16) / (0.01 * 0.01 * 0.01);
+    CHECK(double(raster.stats().voxelsEvaluated) < 2 * shell);
+    CHECK(double(grid->activeVoxelCount()) > 3.0 * 3.0 * 3.0 / 1e-6);
+}
+
+TEST_CASE("surface-only rasterization: exact near the surface, right side elsewhere, same marching cubes") {
+    initializeOpenVdb();
+    const DensityScene scene(testScene(), "test");
+    RasterOptions full, surf;
+    full.voxelSize = surf.voxelSize = 0.01; // falloff shells 20-30 voxels wide
+    surf.surfaceOnly = true;
+    const DensityRaster a(scene, full), b(scene, surf);
+    CHECK(b.stats().voxelsEvaluated < a.stats().voxelsEvaluated / 2);
+    const auto ga = floatGrid(a.grid()), gb = floatGrid(b.grid());
+    auto accB = gb->getConstAccessor();
+    std::size_t wrongSide = 0;
+    for (auto it = ga->cbeginValueOn(); it; ++it) {
+        openvdb::CoordBBox bb;
+        it.getBoundingBox(bb);
+        for (auto c = bb.begin(); c; ++c) wrongSide += (*it > 0.5f) != (accB.getValue(*c) > 0.5f);
+    }
+    CHECK(wrongSide == 0);
+    // Marching cubes at the voxel size sees only values next to the surface: identical meshes.
+    MeshRequest req;
+    req.method = MeshMethod::MarchingCubes;
+    MeshReport ra, rb;
+    const Mesh ma = meshField(GridField(a.grid(), "full"), req, ra);
+    const Mesh mb = meshField(GridField(b.grid(), "surface only"), req, rb);
+    CHECK(ma.points == mb.points);
+    CHECK(ma.indices == mb.indices);
+}
+
+TEST_CASE("an edit recomputes only what the primitive touches and equals a full rebuild, both modes") {
+    initializeOpenVdb();
+    for (bool surfaceOnly : {false, true}) {
+        INFO("surface only " << surfaceOnly);
+        RasterOptions o;
+        o.voxelSize = 0.02;
+        o.surfaceOnly = surfaceOnly;
+        std::vector<Primitive> prims = testScene();
+        DensityRaster raster(DensityScene(prims, "test"), o);
+        const std::uint64_t fullLeaves = raster.stats().leavesDecided;
+
+        prims[3].center = prims[3].center + Vec3d(0.15, 0.05, -0.1); // move
+        raster.update(DensityScene(prims, "test"));
+        CHECK(raster.stats().leavesRecomputed < fullLeaves / 2);
+        requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "test"), o).grid()));
+
+        prims.push_back(box({-0.2, 0.5, 0.3}, {0.2, 0.1, 0.1}, 0.15, {30, 0, 0})); // add
+        raster.update(DensityScene(prims, "test"));
+        requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "test"), o).grid()));
+
+        prims.erase(prims.begin() + 2); // remove the subtraction
+        raster.update(DensityScene(prims, "test"));
+        requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "test"), o).grid()));
+
+        std::swap(prims[0], prims[1]); // reorder: everything again
+        raster.update(DensityScene(prims, "test"));
+        requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "test"), o).grid()));
+    }
+}
+
+TEST_CASE("the 0.5 surface of one sphere primitive lies half the falloff outside its core") {
+    const DensityScene scene({ellipsoid({0.1, 0.2, -0.1}, {0.5, 0.5, 0.5}, 0.4)}, "sphere");
+    MeshRequest req;
+    req.voxelSize = 0.05;
+    MeshReport rep;
+    const Mesh m = meshField(scene, req, rep);
+    CHECK(checkTopology(m).closedManifoldOriented());
+    CHECK(countComponents(m) == 1);
+    double worst = 0;
+    for (const Vec3f& p : m.points) worst = std::max(worst, std::fabs(length(Vec3d(p) - Vec3d(0.1, 0.2, -0.1)) - 0.7));
+    CHECK(worst < 1e-4);
+    CHECK(enclosedVolume(m) == Approx(4.0 / 3.0 * 3.14159265358979 * 0.343).epsilon(0.01));
+    // The same from the rasterized grid, within what trilinear sampling allows.
+    RasterOptions o;
+    o.voxelSize = 0.05;
+    initializeOpenVdb();
+    const DensityRaster raster(scene, o);
+    MeshReport gr;
+    const Mesh g = meshField(GridField(raster.grid(), "density"), {}, gr);
+    double worstGrid = 0;
+    for (const Vec3f& p : g.points) worstGrid = std::max(worstGrid, std::fabs(length(Vec3d(p) - Vec3d(0.1, 0.2, -0.1)) - 0.7));
+    CHECK(worstGrid < 0.1 * 0.05);
+}
+
+TEST_CASE("scene files: the documented form parses; mistakes name the primitive and the field") {
+    const std::string good = R"({"primitives": [{"core": "ellipsoid", "center": [0,0,0], "radii": [1,0.6,0.6],
+        "rotation": [0,0,30], "falloff": 0.5, "weight": 1.0, "op": "add"}, {"core": "box",
+        "center": [1,0,0], "half_extents": [0.5,0.5,0.5], "falloff": 0.4}]})";
+    const DensityScene s = parseSceneText(good, "s.json");
+    REQUIRE(s.primitives().size() == 2);
+    CHECK(s.primitives()[1].core == CoreShape::Box);
+    CHECK(s.primitives()[1].weight == 1.0);
+    CHECK(s.primitives()[1].op == DensityOp::Add);
+    CHECK(s.primitives()[0].rotationDegrees.z == 30);
+    // Round trip.
+    const DensityScene back = parseSceneText(sceneToJsonText(s.primitives(), std::nullopt), "back");
+    CHECK(back.value({0.9, 0.3, 0.1}) == s.value({0.9, 0.3, 0.1}));
+
+    auto fails = [](const std::string& text, const std::string& what) {
+        try {
+            parseSceneText(text, "s.json");
+            FAIL("accepted: " << text);
+        } catch (const Error& e) {
+            INFO(e.what());
+            CHECK(std::string(e.what()).find("s.json") == 0);
+            CHECK(std::string(e.what()).find(what) != std::string::npos);
+        }
+    };
+    const std::string box1 = R"("core": "box", "center": [1,0,0], "half_extents": [0.5,0.5,0.5])";
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0}]}", "primitive 0 (box): 'falloff' must be positive");
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2}, {\"core\": \"ellipsoid\", \"center\": [0,0,0], \"radii\": [1,-1,1], \"falloff\": 0.3}]}",
+          "primitive 1 (ellipsoid): 'radii' must be positive");
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"radius\": 3}]}", "'radius' is not a field of a box primitive");
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": \"wide\"}]}", "'falloff' must be a number");
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"center\": [1,2]}]}", "'center' must be an array of 3 numbers");
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"op\": \"union\"}]}", "'op' must be \"add\" or \"subtract\"");
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"weight\": -1}]}", "'weight' must be positive");
+    fails("{\"primitives\": [{\"core\": \"torus\"}]}", "'core' must be \"ellipsoid\" or \"box\"");
+    fails("{\"primitives\": [{\"core\": \"box\", \"center\": [0,0,0], \"falloff\": 1}]}", "'half_extents' is missing");
+    fails("{\"primitives\": [], \"units\": \"m\"}", "'units' is not a scene field");
+    fails("{\"primitives\": []}", "no primitive with op \"add\"");
+    fails("{\"primitives\": [{" + box1, "not valid JSON");
+    fails("[1, 2]", "must be a JSON object");
+}
