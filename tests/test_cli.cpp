@@ -205,3 +205,75 @@ TEST_CASE("compare prints volumeToMesh, mc and dmc side by side and writes JSON"
         CHECK(row["polygons"].get<int>() > 500); // a sphere of radius 1 at H = 0.15: about 800
     }
 }
+
+TEST_CASE("scenes: rasterize, edit and mesh from the command line; malformed scenes leave no file") {
+    test::TempDir dir;
+    const std::string scene = dir.path("scene.json");
+    {
+        std::ofstream(scene) << R"({"primitives": [
+            {"core": "ellipsoid", "center": [0,0,0], "radii": [0.6,0.4,0.4], "rotation": [0,0,30], "falloff": 0.3},
+            {"core": "box", "center": [0.6,0,0], "half_extents": [0.2,0.2,0.2], "falloff": 0.2, "name": "nose"}]})";
+    }
+    auto r = runVdbsurf({"rasterize", scene, "-o", dir.path("d.vdb"), "--voxel-size", "0.02"});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    r = runVdbsurf({"info", dir.path("d.vdb")});
+    CHECK(r.output.find("density") != std::string::npos);
+    CHECK(r.output.find("fog") != std::string::npos);
+
+    r = runVdbsurf({"mesh", scene, "-o", dir.path("direct.obj"), "--voxel-size", "0.05"});
+    INFO(r.output);
+    CHECK(r.exitCode == 0);
+    CHECK(test::fileExists(dir.path("direct.obj")));
+
+    // Move the box, then compare with rasterizing the edited scene from scratch.
+    r = runVdbsurf({"edit", dir.path("d.vdb"), "--set", "1.center=0.7,0.1,0", "--scene-out", dir.path("edited.json"), "-o",
+                    dir.path("e.vdb")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("leaves recomputed") != std::string::npos);
+    r = runVdbsurf({"rasterize", dir.path("edited.json"), "-o", dir.path("full.vdb"), "--voxel-size", "0.02"});
+    REQUIRE(r.exitCode == 0);
+    const auto e = openvdb::GridBase::grid<openvdb::FloatGrid>(readScalarGrid(dir.path("e.vdb"), "density").grid);
+    const auto f = openvdb::GridBase::grid<openvdb::FloatGrid>(readScalarGrid(dir.path("full.vdb"), "density").grid);
+    CHECK(e->activeVoxelCount() == f->activeVoxelCount());
+    auto fa = f->getConstAccessor();
+    std::size_t differ = 0;
+    for (auto it = e->cbeginValueOn(); it; ++it) {
+        openvdb::CoordBBox bb;
+        it.getBoundingBox(bb);
+        for (auto c = bb.begin(); c; ++c) differ += fa.getValue(*c) != *it || !fa.isValueOn(*c);
+    }
+    CHECK(differ == 0);
+
+    const auto before = dir.files();
+    auto bad = [&](const std::string& name, const std::string& text, const std::string& what) {
+        {
+            std::ofstream(dir.path(name)) << text;
+        }
+        const auto now = dir.files();
+        expectFailure(dir, {"rasterize", dir.path(name), "-o", dir.path("bad.vdb"), "--voxel-size", "0.05"}, name, what, now);
+        expectFailure(dir, {"mesh", dir.path(name), "-o", dir.path("bad.obj"), "--voxel-size", "0.05"}, name, what, now);
+    };
+    bad("neg.json", R"({"primitives": [{"core": "ellipsoid", "center": [0,0,0], "radii": [-1,1,1], "falloff": 0.3}]})",
+        "primitive 0 (ellipsoid): 'radii' must be positive");
+    bad("zero.json", R"({"primitives": [{"core": "box", "center": [0,0,0], "half_extents": [1,1,1], "falloff": 0}]})",
+        "'falloff' must be positive");
+    bad("type.json", R"({"primitives": [{"core": "box", "center": "origin", "half_extents": [1,1,1], "falloff": 1}]})",
+        "'center' must be an array of 3 numbers");
+    bad("unknown.json", R"({"primitives": [{"core": "box", "center": [0,0,0], "half_extents": [1,1,1], "falloff": 1, "colour": 2}]})",
+        "'colour' is not a field");
+    bad("broken.json", "{\"primitives\": [", "not valid JSON");
+    const auto now = dir.files();
+    expectFailure(dir, {"rasterize", dir.path("missing.json"), "-o", dir.path("bad.vdb"), "--voxel-size", "0.05"}, "missing.json",
+                  "cannot open", now);
+    expectFailure(dir, {"rasterize", scene, "-o", dir.path("bad.vdb")}, "--voxel-size", "required", now);
+    expectFailure(dir, {"edit", dir.path("d.vdb"), "--set", "5.center=0,0,0", "-o", dir.path("bad.vdb")}, "5.center", "no primitive 5",
+                  now);
+    expectFailure(dir, {"edit", dir.path("d.vdb"), "--set", "0.radii=1,0,1", "-o", dir.path("bad.vdb")}, "0.radii",
+                  "'radii' must be positive", now);
+    writeSphereFile(dir.path("plain.vdb"));
+    const auto now2 = dir.files();
+    expectFailure(dir, {"edit", dir.path("plain.vdb"), "--set", "0.falloff=1", "-o", dir.path("bad.vdb")}, "plain.vdb",
+                  "no grid named 'density'", now2);
+}
