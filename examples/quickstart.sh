@@ -24,6 +24,14 @@ echo "== 3. what the .vdb holds"
 echo "== 4. mesh the .vdb, as from any vdb_tool / Houdini / Blender cache, at a coarser spacing"
 "$vdbsurf" mesh "$out/twisted_torus.vdb" -o "$out/twisted_torus_from_vdb.ply" --voxel-size 0.04
 
+echo "== 5. a blobby density scene (examples/scenes/blobby.json): meshed directly, then rasterized sparsely"
+"$vdbsurf" mesh "$here/scenes/blobby.json" -o "$out/blobby.obj"
+"$vdbsurf" rasterize "$here/scenes/blobby.json" -o "$out/blobby.vdb"
+
+echo "== 6. move the head (primitive 1): only the leaves it touches are recomputed"
+"$vdbsurf" edit "$out/blobby.vdb" --set 1.center=1.25,0.6,0.1 -o "$out/blobby_moved.vdb" --scene-out "$out/blobby_moved.json"
+"$vdbsurf" mesh "$out/blobby_moved.vdb" -o "$out/blobby_moved.obj"
+
 echo
 echo "results are in $out:"
 ls -l "$out" | awk 'NR > 1 {print "  " $NF "  (" $5 " bytes)"}'

@@ -209,12 +209,24 @@ struct DensityRaster::Impl {
             return;
         }
 
+        // Leaves the changed primitives reach: within their influence boxes, and where their
+        // own bounds say they add something (a ball fills half its box). Elsewhere they add
+        // exactly 0, so the leaf's voxels and decision are what they were.
         std::vector<Coord> origins;
         const int grow = options.surfaceOnly ? 1 : 0;
+        auto reached = [&](const PreparedPrimitive& p) {
+            std::vector<Coord> leaves;
+            leavesIn(p.influenceBox(), grow, leaves);
+            for (const Coord& c : leaves) {
+                double lo, hi;
+                p.densityBounds(blockBox(c, kLeaf, grow), lo, hi);
+                if (hi > 0) origins.push_back(c);
+            }
+        };
         for (std::size_t i = 0; i < before.size(); ++i)
-            if (!keptBefore[i]) leavesIn(scene.prepared()[i].influenceBox(), grow, origins);
+            if (!keptBefore[i]) reached(scene.prepared()[i]);
         for (std::size_t j = 0; j < after.size(); ++j)
-            if (!keptAfter[j]) leavesIn(edited.prepared()[j].influenceBox(), grow, origins);
+            if (!keptAfter[j]) reached(edited.prepared()[j]);
         std::sort(origins.begin(), origins.end());
         origins.erase(std::unique(origins.begin(), origins.end()), origins.end());
 
