@@ -206,7 +206,7 @@ TEST_CASE("compare prints volumeToMesh, mc and dmc side by side and writes JSON"
     }
 }
 
-TEST_CASE("scenes: rasterize, edit and mesh from the command line; malformed scenes leave no file") {
+TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed scenes leave no file") {
     test::TempDir dir;
     const std::string scene = dir.path("scene.json");
     {

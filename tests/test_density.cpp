@@ -151,7 +151,7 @@ TEST_CASE("rotated box density: face, edge and corner regions against the closed
     }
 }
 
-TEST_CASE("scene bounds contain every sampled value over random boxes; the gradient matches differences") {
+TEST_CASE("scene bounds contain every sampled value over random boxes, and the gradient matches differences") {
     const DensityScene scene(testScene(), "test");
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> u(-1.2, 1.2), w(0.005, 0.6), t(0, 1);
@@ -321,7 +321,7 @@ TEST_CASE("the 0.5 surface of one sphere primitive lies half the falloff outside
     CHECK(worstGrid < 0.1 * 0.05);
 }
 
-TEST_CASE("scene files: the documented form parses; mistakes name the primitive and the field") {
+TEST_CASE("scene files: the documented form parses, and mistakes name the primitive and the field") {
     const std::string good = R"({"primitives": [{"core": "ellipsoid", "center": [0,0,0], "radii": [1,0.6,0.6],
         "rotation": [0,0,30], "falloff": 0.5, "weight": 1.0, "op": "add"}, {"core": "box",
         "center": [1,0,0], "half_extents": [0.5,0.5,0.5], "falloff": 0.4}]})";
