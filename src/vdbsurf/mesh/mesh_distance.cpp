@@ -70,25 +70,4 @@ double MeshDistance::distance(const Vec3d& p, double maxRadius) const {
     return best;
 }
 
-std::vector<Vec3d> sampleMeshSurface(const Mesh& mesh, double spacing) {
-    std::vector<Vec3d> out;
-    out.reserve(mesh.points.size());
-    for (const Vec3f& v : mesh.points) out.push_back(Vec3d(v));
-    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
-        const std::uint32_t b = mesh.offsets[f], e = mesh.offsets[f + 1];
-        for (std::uint32_t i = b + 1; i + 1 < e; ++i) {
-            const Vec3d A(mesh.points[mesh.indices[b]]), B(mesh.points[mesh.indices[i]]), C(mesh.points[mesh.indices[i + 1]]);
-            const double longest = std::max({length(B - A), length(C - B), length(A - C)});
-            const int n = std::max(1, int(std::ceil(longest / spacing)));
-            for (int u = 0; u <= n; ++u)
-                for (int v = 0; u + v <= n; ++v) {
-                    if ((u == 0 && v == 0) || (u == n && v == 0) || (u == 0 && v == n)) continue; // vertices already in
-                    const double s = double(u) / n, t = double(v) / n;
-                    out.push_back(A + (B - A) * s + (C - A) * t);
-                }
-        }
-    }
-    return out;
-}
-
 } // namespace vdbsurf

@@ -30,8 +30,4 @@ private:
 
 double pointTriangleDistance(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c);
 
-// Points spread over the mesh's surface: every vertex, plus for each triangle points on a
-// regular barycentric pattern with spacing about `spacing`, so that large triangles count too.
-std::vector<Vec3d> sampleMeshSurface(const Mesh& mesh, double spacing);
-
 } // namespace vdbsurf
