@@ -27,29 +27,6 @@ GridBasePtr makeSphereLevelSet(double radius, const Vec3d& center, double voxelS
     return g;
 }
 
-GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double voxelSize) {
-    initializeOpenVdb();
-    const float band = float(3.0 * voxelSize);
-    auto g = openvdb::FloatGrid::create(band);
-    g->setTransform(openvdb::math::Transform::createLinearTransform(voxelSize));
-    g->setGridClass(openvdb::GRID_LEVEL_SET);
-    g->setName("torus");
-    auto acc = g->getAccessor();
-    const int nx = int(std::ceil((R + r) / voxelSize)) + 4, nz = int(std::ceil(r / voxelSize)) + 4;
-    const openvdb::Coord c0 = openvdb::Coord::round(openvdb::Vec3d(center.x, center.y, center.z) / voxelSize);
-    for (int i = -nx; i <= nx; ++i)
-        for (int j = -nx; j <= nx; ++j)
-            for (int k = -nz; k <= nz; ++k) {
-                const openvdb::Coord ijk = c0.offsetBy(i, j, k);
-                const openvdb::Vec3d p = g->indexToWorld(ijk) - openvdb::Vec3d(center.x, center.y, center.z);
-                const double q = std::sqrt(p.x() * p.x() + p.y() * p.y()) - R;
-                const float d = float(std::sqrt(q * q + p.z() * p.z()) - r);
-                if (std::fabs(d) < band) acc.setValue(ijk, d);
-            }
-    openvdb::tools::signedFloodFill(g->tree());
-    return g;
-}
-
 GridBasePtr makeLevelSetFromDistance(const std::function<double(const Vec3d&)>& sdf, const Box3& box, double voxelSize) {
     initializeOpenVdb();
     const float band = float(3.0 * voxelSize);
@@ -68,6 +45,19 @@ GridBasePtr makeLevelSetFromDistance(const std::function<double(const Vec3d&)>& 
                 if (std::fabs(d) < band) acc.setValue(openvdb::Coord(i, j, k), d);
             }
     openvdb::tools::signedFloodFill(g->tree());
+    return g;
+}
+
+GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double voxelSize) {
+    const Vec3d reach(R + r + 4 * voxelSize, R + r + 4 * voxelSize, r + 4 * voxelSize);
+    auto g = makeLevelSetFromDistance(
+        [&](const Vec3d& p) {
+            const Vec3d d = p - center;
+            const double q = std::sqrt(d.x * d.x + d.y * d.y) - R;
+            return std::sqrt(q * q + d.z * d.z) - r;
+        },
+        {center - reach, center + reach}, voxelSize);
+    g->setName("torus");
     return g;
 }
 
