@@ -18,11 +18,20 @@ MeshFormat meshFormatOf(const std::string& path) {
     return MeshFormat::Unknown;
 }
 
-void writeMesh(const std::string& path, const Mesh& mesh, const std::vector<std::string>& comments) {
+Mesh readMesh(const std::string& path) {
+    switch (meshFormatOf(path)) {
+    case MeshFormat::Obj: return readObj(path);
+    case MeshFormat::Ply: return readPly(path);
+    default: throw Error(path, "unsupported mesh format (read .obj or .ply)");
+    }
+}
+
+void writeMesh(const std::string& path, const Mesh& mesh, const std::vector<std::string>& comments, const ViewCamera* camera) {
     switch (meshFormatOf(path)) {
     case MeshFormat::Obj: writeObj(path, mesh, comments); return;
     case MeshFormat::Ply: writePly(path, mesh, comments); return;
-    default: throw Error(path, "unsupported mesh format (use .obj or .ply)");
+    case MeshFormat::Pov: writePov(path, mesh, camera ? *camera : framingCamera(mesh.bounds()), comments); return;
+    default: throw Error(path, "unsupported mesh format (use .obj, .ply or .pov)");
     }
 }
 

@@ -1,0 +1,28 @@
+// The halfedge mesh that subdivision works on: OpenMesh's polygon mesh with double-precision
+// points and the status flags that edge removal needs. Internal to the subdiv module; the public
+// interface (sqrt2_subdivision.h) speaks Mesh, so OpenMesh's headers stay out of the rest.
+#pragma once
+#include "vdbsurf/mesh/mesh.h"
+
+#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+
+#include <string>
+
+namespace vdbsurf::subdiv {
+
+struct SubdivTraits : public OpenMesh::DefaultTraitsDouble {
+    VertexAttributes(OpenMesh::Attributes::Status);
+    EdgeAttributes(OpenMesh::Attributes::Status);
+    FaceAttributes(OpenMesh::Attributes::Status);
+};
+using HalfedgeMesh = OpenMesh::PolyMesh_ArrayKernelT<SubdivTraits>;
+
+// Builds the halfedge mesh of `mesh`; throws Error naming `inputName` when a polygon cannot be
+// added (repeated vertex, an edge used by three polygons, or two neighbours with opposite
+// orientation) or when a vertex joins two separate fans. Vertices no polygon uses are dropped.
+void buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out);
+
+// Positions (as float) and polygons, in the halfedge mesh's vertex and face order.
+Mesh toMesh(const HalfedgeMesh& mesh);
+
+} // namespace vdbsurf::subdiv
