@@ -42,5 +42,6 @@ Action addMeshCommand(CLI::App& app);
 Action addCompareCommand(CLI::App& app);
 Action addRasterizeCommand(CLI::App& app);
 Action addEditCommand(CLI::App& app);
+Action addSubdivideCommand(CLI::App& app);
 
 } // namespace vdbsurf::cli

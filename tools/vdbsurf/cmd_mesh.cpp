@@ -52,8 +52,8 @@ void runMesh(const MeshOptions& o) {
     if (!o.expr.empty() && !o.grid.empty()) throw Error("--grid", "applies only to .vdb input");
     if (o.threads < 0) throw Error("--threads", "must be 0 (all cores) or a positive number");
     const MeshFormat format = meshFormatOf(o.output);
-    if (format != MeshFormat::Obj && format != MeshFormat::Ply && format != MeshFormat::Vdb)
-        throw Error(o.output, "unsupported output format; use .obj, .ply or .vdb");
+    if (format == MeshFormat::Unknown)
+        throw Error(o.output, "unsupported output format; use .obj, .ply, .pov (a POV-Ray scene) or .vdb (a level set)");
     checkWritableTarget(o.output);
     if (!o.stats.empty()) checkWritableTarget(o.stats);
     const bool dmc = o.method == "dmc";

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
     add(&cli::addCompareCommand);
     add(&cli::addRasterizeCommand);
     add(&cli::addEditCommand);
+    add(&cli::addSubdivideCommand);
 
     try {
         app.parse(argc, argv);

@@ -7,6 +7,7 @@
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 
 #include <string>
+#include <vector>
 
 namespace vdbsurf::subdiv {
 
@@ -17,10 +18,17 @@ struct SubdivTraits : public OpenMesh::DefaultTraitsDouble {
 };
 using HalfedgeMesh = OpenMesh::PolyMesh_ArrayKernelT<SubdivTraits>;
 
-// Builds the halfedge mesh of `mesh`; throws Error naming `inputName` when a polygon cannot be
-// added (repeated vertex, an edge used by three polygons, or two neighbours with opposite
-// orientation) or when a vertex joins two separate fans. Vertices no polygon uses are dropped.
-void buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out);
+// Non-manifold vertices (several fans of polygons meeting at one point, as where two blobs
+// touch) are split: each further fan gets its own copy of the vertex. cornerVertex receives
+// the vertex of every corner (indices into points, then the copies); returns the source
+// vertex of each copy.
+std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, std::vector<std::uint32_t>& cornerVertex);
+
+// Builds the halfedge mesh of `mesh` after splitVertexFans, and returns how many vertex copies
+// that made. Throws Error naming `inputName` when a polygon cannot be added (repeated vertex,
+// an edge used by three polygons, or two neighbours with opposite orientation). Vertices no
+// polygon uses are dropped.
+std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out);
 
 // Positions (as float) and polygons, in the halfedge mesh's vertex and face order.
 Mesh toMesh(const HalfedgeMesh& mesh);

@@ -40,6 +40,7 @@ struct Sqrt2Subdivider::Impl {
     OpenMesh::FPropHandleT<std::uint32_t> tag;
     TagMerge merge = TagMerge::Max;
     int steps = 0;
+    std::size_t splitVertices = 0;
 
     Point centroid(HalfedgeMesh::FaceHandle f) const {
         Point c(0, 0, 0);
@@ -57,7 +58,7 @@ struct Sqrt2Subdivider::Impl {
 };
 
 Sqrt2Subdivider::Sqrt2Subdivider(const Mesh& mesh, const std::string& inputName) : mImpl(new Impl) {
-    subdiv::buildHalfedgeMesh(mesh, inputName, mImpl->mesh);
+    mImpl->splitVertices = subdiv::buildHalfedgeMesh(mesh, inputName, mImpl->mesh);
     mImpl->mesh.add_property(mImpl->storedPoint);
     mImpl->mesh.add_property(mImpl->kind);
     mImpl->mesh.add_property(mImpl->tag);
@@ -70,6 +71,7 @@ Sqrt2Subdivider::Sqrt2Subdivider(const Mesh& mesh, const std::string& inputName)
 Sqrt2Subdivider::~Sqrt2Subdivider() = default;
 
 int Sqrt2Subdivider::stepsDone() const { return mImpl->steps; }
+std::size_t Sqrt2Subdivider::splitVertices() const { return mImpl->splitVertices; }
 std::size_t Sqrt2Subdivider::faceCount() const { return mImpl->mesh.n_faces(); }
 std::size_t Sqrt2Subdivider::vertexCount() const { return mImpl->mesh.n_vertices(); }
 

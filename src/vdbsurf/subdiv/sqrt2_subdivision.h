@@ -36,13 +36,16 @@ public:
     // How the per-face tag of a face merged from two refined faces is formed.
     enum class TagMerge { Max, BitOr };
 
-    // Throws Error naming inputName when the mesh is not manifold or not consistently oriented.
+    // Throws Error naming inputName when an edge has three or more polygons or two polygons
+    // disagree on orientation. A vertex where separate fans of polygons meet is split into one
+    // vertex per fan (they then part as the fans are smoothed); see splitVertices().
     Sqrt2Subdivider(const Mesh& mesh, const std::string& inputName);
     ~Sqrt2Subdivider();
     Sqrt2Subdivider(const Sqrt2Subdivider&) = delete;
     Sqrt2Subdivider& operator=(const Sqrt2Subdivider&) = delete;
 
     int stepsDone() const;
+    std::size_t splitVertices() const; // vertex copies made for non-manifold vertices
     std::size_t faceCount() const;
     std::size_t vertexCount() const;
 

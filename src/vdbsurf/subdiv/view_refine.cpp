@@ -106,6 +106,7 @@ Mesh subdivideForView(const Mesh& mesh, const ViewCamera& camera, const ViewRefi
     const CameraProjection cam(camera);
     ViewRefineReport rep;
     rep.inputFaces = s.faceCount();
+    rep.splitVertices = s.splitVertices();
 
     // (1a)–(c): the initial front and silhouette sets.
     std::vector<FaceView> views = classifyAll(s, cam);

@@ -19,6 +19,7 @@ struct ViewRefineOptions {
 
 struct ViewRefineReport {
     std::size_t inputFaces = 0, outputFaces = 0;
+    std::size_t splitVertices = 0; // non-manifold input vertices split per fan
     std::size_t initialFront = 0, initialSilhouette = 0, outsideView = 0;
     std::vector<std::size_t> refinedPerStep; // faces refined by each √2 step
 };
