@@ -2,13 +2,20 @@
 
 #include "vdbsurf/core/error.h"
 
-#include <OpenMesh/Core/System/omstream.hh>
+#include <tbb/parallel_for.h>
 
 #include <vector>
 
 namespace vdbsurf::subdiv {
 
 namespace {
+
+template <typename F>
+void parallelFor(std::size_t n, F&& f) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) f(i);
+    });
+}
 
 // Corner c of `mesh` is indices[c]; its polygon's next and previous corners.
 struct Corners {
@@ -81,11 +88,78 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
     return copiesOf;
 }
 
+void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices) {
+    using VH = HalfedgeMesh::VertexHandle;
+    using HH = HalfedgeMesh::HalfedgeHandle;
+    using FH = HalfedgeMesh::FaceHandle;
+    const std::size_t nF = offsets.size() - 1, nc = indices.size();
+    std::vector<std::uint32_t> nextCorner(nc), prevCorner(nc);
+    parallelFor(nF, [&](std::size_t f) {
+        const std::uint32_t b = offsets[f], n = offsets[f + 1] - b;
+        for (std::uint32_t k = 0; k < n; ++k) {
+            nextCorner[b + k] = b + (k + 1 == n ? 0 : k + 1);
+            prevCorner[b + k] = b + (k == 0 ? n - 1 : k - 1);
+        }
+    });
+    // Outgoing corners of each vertex; corner c is the halfedge indices[c] -> indices[next(c)].
+    std::vector<std::uint32_t> start(nV + 1, 0), outgoing(nc);
+    for (std::uint32_t v : indices) ++start[v + 1];
+    for (std::size_t v = 0; v < nV; ++v) start[v + 1] += start[v];
+    {
+        std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+        for (std::uint32_t c = 0; c < nc; ++c) outgoing[fill[indices[c]]++] = c;
+    }
+    constexpr std::uint32_t kNone = ~0u;
+    std::vector<std::uint32_t> partner(nc);
+    parallelFor(nc, [&](std::size_t c) {
+        const std::uint32_t u = indices[c], w = indices[nextCorner[c]];
+        std::uint32_t found = kNone;
+        for (std::uint32_t a = start[w]; a < start[w + 1]; ++a)
+            if (indices[nextCorner[outgoing[a]]] == u) found = outgoing[a];
+        partner[c] = found;
+    });
+    // The lower corner of a pair (or a corner alone on the boundary) makes the edge.
+    std::vector<std::uint32_t> halfedgeOf(nc);
+    std::size_t nE = 0;
+    for (std::uint32_t c = 0; c < nc; ++c)
+        if (partner[c] == kNone || c < partner[c]) halfedgeOf[c] = std::uint32_t(2 * nE++);
+    parallelFor(nc, [&](std::size_t c) {
+        if (partner[c] != kNone && partner[c] < c) halfedgeOf[c] = halfedgeOf[partner[c]] + 1;
+    });
+
+    m.clean();
+    m.resize(nV, nE, nF);
+    std::vector<HH> boundaryOut(nV);
+    for (std::uint32_t c = 0; c < nc; ++c)
+        if (partner[c] == kNone) boundaryOut[indices[nextCorner[c]]] = HH(int(halfedgeOf[c] ^ 1u));
+    parallelFor(nF, [&](std::size_t f) {
+        const FH fh{int(f)};
+        m.set_halfedge_handle(fh, HH(int(halfedgeOf[offsets[f]])));
+        for (std::uint32_t c = offsets[f]; c < offsets[f + 1]; ++c) {
+            const HH h{int(halfedgeOf[c])};
+            m.set_vertex_handle(h, VH(int(indices[nextCorner[c]])));
+            m.set_face_handle(h, fh);
+            m.set_next_halfedge_handle(h, HH(int(halfedgeOf[nextCorner[c]])));
+            if (partner[c] == kNone) {
+                const HH b{int(halfedgeOf[c] ^ 1u)};
+                m.set_vertex_handle(b, VH(int(indices[c])));
+                m.set_boundary(b);
+                m.set_next_halfedge_handle(b, boundaryOut[indices[c]]);
+            }
+        }
+    });
+    // A boundary vertex's halfedge must be its outgoing boundary halfedge (OpenMesh's rule).
+    parallelFor(nV, [&](std::size_t v) {
+        if (boundaryOut[v].is_valid()) m.set_halfedge_handle(VH(int(v)), boundaryOut[v]);
+        else if (start[v] < start[v + 1]) m.set_halfedge_handle(VH(int(v)), HH(int(halfedgeOf[outgoing[start[v]]])));
+    });
+}
+
 std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out) {
-    out.clear();
     for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
         const std::uint32_t* v = mesh.polygon(f);
         const std::uint32_t n = mesh.polygonSize(f);
+        if (n < 3) throw Error(inputName, "polygon " + std::to_string(f) + " has fewer than three vertices");
         for (std::uint32_t a = 0; a < n; ++a)
             for (std::uint32_t b = a + 1; b < n; ++b)
                 if (v[a] == v[b]) throw Error(inputName, "polygon " + std::to_string(f) + " repeats vertex " + std::to_string(v[a]));
@@ -93,34 +167,20 @@ std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, Ha
     std::vector<std::uint32_t> cornerVertex;
     const std::vector<std::uint32_t> copiesOf = splitVertexFans(mesh, inputName, cornerVertex);
     const std::size_t total = mesh.points.size() + copiesOf.size();
-    auto pointOf = [&](std::size_t i) { return mesh.points[i < mesh.points.size() ? i : copiesOf[i - mesh.points.size()]]; };
-    std::vector<int> used(total, -1);
-    std::size_t usedCount = 0;
-    for (std::uint32_t i : cornerVertex)
-        if (used[i] < 0) used[i] = int(usedCount++);
-    out.reserve(usedCount, mesh.indices.size(), mesh.polygonCount());
-    std::vector<HalfedgeMesh::VertexHandle> handle(total);
-    // Vertices keep the input's order among the used ones, so output order follows input order.
+    // Vertices keep the input's order among the used ones, then the copies.
+    std::vector<char> isUsed(total, 0);
+    for (std::uint32_t i : cornerVertex) isUsed[i] = 1;
+    std::vector<std::uint32_t> compact(total, ~0u);
+    std::uint32_t used = 0;
     for (std::size_t i = 0; i < total; ++i)
-        if (used[i] >= 0) {
-            const Vec3f& p = pointOf(i);
-            handle[i] = out.add_vertex(HalfedgeMesh::Point(p.x, p.y, p.z));
+        if (isUsed[i]) compact[i] = used++;
+    for (std::uint32_t& i : cornerVertex) i = compact[i];
+    assemble(out, used, mesh.offsets, cornerVertex);
+    for (std::size_t i = 0; i < total; ++i)
+        if (compact[i] != ~0u) {
+            const Vec3f& p = mesh.points[i < mesh.points.size() ? i : copiesOf[i - mesh.points.size()]];
+            out.set_point(HalfedgeMesh::VertexHandle(int(compact[i])), HalfedgeMesh::Point(p.x, p.y, p.z));
         }
-    // OpenMesh logs a refused face on its own error stream; we throw one clear Error instead.
-    struct QuietOpenMesh {
-        QuietOpenMesh() { omerr().disable(); }
-        ~QuietOpenMesh() { omerr().enable(); }
-    } quiet;
-    std::vector<HalfedgeMesh::VertexHandle> corners;
-    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
-        corners.clear();
-        for (std::uint32_t c = 0; c < mesh.polygonSize(f); ++c) corners.push_back(handle[cornerVertex[mesh.offsets[f] + c]]);
-        if (!out.add_face(corners).is_valid())
-            throw Error(inputName, "polygon " + std::to_string(f) +
-                                       " cannot join the mesh: it would make an edge of three polygons, or it is oriented "
-                                       "against its neighbour, or it repeats a polygon; subdivision needs a manifold, "
-                                       "consistently oriented mesh");
-    }
     return copiesOf.size();
 }
 

@@ -1,5 +1,6 @@
 // The halfedge mesh that subdivision works on: OpenMesh's polygon mesh with double-precision
-// points and the status flags that edge removal needs. Internal to the subdiv module; the public
+// points, filled a whole level at a time through OpenMesh's kernel (assemble()) rather than
+// face by face, which is what makes a √2 step as fast as OpenSubdiv's table-driven refinement. Internal to the subdiv module; the public
 // interface (sqrt2_subdivision.h) speaks Mesh, so OpenMesh's headers stay out of the rest.
 #pragma once
 #include "vdbsurf/mesh/mesh.h"
@@ -11,11 +12,8 @@
 
 namespace vdbsurf::subdiv {
 
-struct SubdivTraits : public OpenMesh::DefaultTraitsDouble {
-    VertexAttributes(OpenMesh::Attributes::Status);
-    EdgeAttributes(OpenMesh::Attributes::Status);
-    FaceAttributes(OpenMesh::Attributes::Status);
-};
+// No status flags: meshes are assembled whole (see assemble()), never edited element by element.
+struct SubdivTraits : public OpenMesh::DefaultTraitsDouble {};
 using HalfedgeMesh = OpenMesh::PolyMesh_ArrayKernelT<SubdivTraits>;
 
 // Non-manifold vertices (several fans of polygons meeting at one point, as where two blobs
@@ -29,6 +27,14 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, std::vector<std::ui
 // an edge used by three polygons, or two neighbours with opposite orientation). Vertices no
 // polygon uses are dropped.
 std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out);
+
+// Replaces the connectivity of `mesh` with the polygons given (vertex indices < vertexCount),
+// keeping registered properties. Halfedges are paired through each vertex's outgoing corners,
+// edges numbered in corner order, so the result is the same for any thread count. The polygons
+// must form a manifold, consistently oriented surface (as splitVertexFans checks, and as every
+// √2 step preserves); points are left for the caller to set.
+void assemble(HalfedgeMesh& mesh, std::size_t vertexCount, const std::vector<std::uint32_t>& offsets,
+              const std::vector<std::uint32_t>& indices);
 
 // Positions (as float) and polygons, in the halfedge mesh's vertex and face order.
 Mesh toMesh(const HalfedgeMesh& mesh);

@@ -1,6 +1,7 @@
-// One √2 step = geometry first (face points, edge points, vertex moves, all from the old mesh,
-// in parallel: each value depends only on the old mesh, so the thread count cannot change it),
-// then topology in face and edge index order (serial, so the result is the same every run).
+// One √2 step reads the old level and writes the new one whole: face points, edge points and
+// vertex moves from the old mesh; the new polygons face by face (counted, prefix-summed, then
+// filled, all in parallel, each value depending only on the old mesh, so the thread count
+// cannot change the result); then subdiv::assemble() links the halfedges of the new level.
 #include "vdbsurf/subdiv/sqrt2_subdivision.h"
 
 #include "vdbsurf/core/error.h"
@@ -100,14 +101,19 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     const std::size_t nF = m.n_faces(), nE = m.n_edges(), nV = m.n_vertices();
     auto refined = [&](HalfedgeMesh::FaceHandle f) { return f.is_valid() && refine[std::size_t(f.idx())] != 0; };
 
-    // Face points: stored ones on the even step, vertex averages otherwise.
-    std::vector<Point> facePoint(nF);
-    std::size_t refinedCount = 0;
-    for (std::size_t f = 0; f < nF; ++f) refinedCount += refine[f] != 0;
-    if (refinedCount == 0) {
+    // New vertex of each refined face: nV + its rank among refined faces.
+    std::vector<std::uint32_t> newVertex(nF, 0);
+    std::uint32_t next = std::uint32_t(nV);
+    for (std::size_t f = 0; f < nF; ++f)
+        if (refine[f]) newVertex[f] = next++;
+    if (next == nV) {
         ++steps;
         return;
     }
+
+    // Face points: stored ones on the even step, vertex averages otherwise. On the even step a
+    // boundary triangle's stored point is its boundary edge's midpoint, where the edge splits.
+    std::vector<Point> facePoint(nF);
     parallelIndices(nF, [&](std::size_t i) {
         if (!refine[i]) return;
         const auto f = m.face_handle(int(i));
@@ -115,124 +121,143 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     });
 
     // Edges whose two faces are both refined disappear; on the odd step their Catmull-Clark edge
-    // points move to the merged quads, and boundary edges beside a refined face keep a midpoint.
-    std::vector<int> removed;
-    removed.reserve(nE);
+    // points go to the merged quads, and boundary edges beside a refined face keep a midpoint.
+    std::vector<std::uint8_t> removed(nE);
     std::vector<Point> edgePoint(odd ? nE : 0);
-    for (std::size_t e = 0; e < nE; ++e) {
+    parallelIndices(nE, [&](std::size_t e) {
         const auto eh = m.edge_handle(int(e));
-        const auto f0 = m.face_handle(m.halfedge_handle(eh, 0)), f1 = m.face_handle(m.halfedge_handle(eh, 1));
-        if (refined(f0) && refined(f1)) removed.push_back(int(e));
-    }
-    if (odd) {
-        parallelIndices(nE, [&](std::size_t e) {
-            const auto eh = m.edge_handle(int(e));
-            const auto h0 = m.halfedge_handle(eh, 0), h1 = m.halfedge_handle(eh, 1);
-            const auto f0 = m.face_handle(h0), f1 = m.face_handle(h1);
-            const Point& a = m.point(m.to_vertex_handle(h0));
-            const Point& b = m.point(m.to_vertex_handle(h1));
-            if (refined(f0) && refined(f1))
-                edgePoint[e] = (a + b + facePoint[std::size_t(f0.idx())] + facePoint[std::size_t(f1.idx())]) * 0.25;
-            else if ((!f0.is_valid() && refined(f1)) || (!f1.is_valid() && refined(f0)))
-                edgePoint[e] = (a + b) * 0.5;
-        });
-    }
+        const auto h0 = m.halfedge_handle(eh, 0), h1 = m.halfedge_handle(eh, 1);
+        const auto f0 = m.face_handle(h0), f1 = m.face_handle(h1);
+        removed[e] = refined(f0) && refined(f1);
+        if (!odd) return;
+        const Point& a = m.point(m.to_vertex_handle(h0));
+        const Point& b = m.point(m.to_vertex_handle(h1));
+        if (removed[e]) edgePoint[e] = (a + b + facePoint[std::size_t(f0.idx())] + facePoint[std::size_t(f1.idx())]) * 0.25;
+        else if ((!f0.is_valid() && refined(f1)) || (!f1.is_valid() && refined(f0))) edgePoint[e] = (a + b) * 0.5;
+    });
 
-    // Vertex moves (odd step only), for vertices whose every face is refined now.
-    std::vector<Point> moved(odd ? nV : 0);
-    std::vector<std::uint8_t> moves(odd ? nV : 0, 0);
-    if (odd) {
-        parallelIndices(nV, [&](std::size_t i) {
-            const auto v = m.vertex_handle(int(i));
-            if (m.is_isolated(v)) return;
-            int valence = 0;
-            Point faceSum(0, 0, 0), neighbourSum(0, 0, 0), boundarySum(0, 0, 0);
-            for (const auto h : m.voh_range(v)) {
-                const auto f = m.face_handle(h);
-                if (f.is_valid()) {
-                    if (!refined(f)) return;
-                    faceSum += facePoint[std::size_t(f.idx())];
-                }
-                const Point& w = m.point(m.to_vertex_handle(h));
-                neighbourSum += w;
-                if (m.is_boundary(m.edge_handle(h))) boundarySum += w;
-                ++valence;
+    // New positions: old vertices (moved on the odd step when every face around them is
+    // refined), then the face points.
+    std::vector<Point> position(next);
+    parallelIndices(nV, [&](std::size_t i) {
+        const auto v = m.vertex_handle(int(i));
+        const Point& s = m.point(v);
+        position[i] = s;
+        if (!odd || m.is_isolated(v)) return;
+        int valence = 0;
+        Point faceSum(0, 0, 0), neighbourSum(0, 0, 0), boundarySum(0, 0, 0);
+        for (const auto h : m.voh_range(v)) {
+            const auto f = m.face_handle(h);
+            if (f.is_valid()) {
+                if (!refined(f)) return;
+                faceSum += facePoint[std::size_t(f.idx())];
             }
-            const Point& s = m.point(v);
-            if (m.is_boundary(v)) {
-                // Crease rule of a smooth boundary (OpenSubdiv's edge-only interpolation).
-                moved[i] = s * 0.75 + boundarySum * 0.125;
-            } else {
-                // Eq. (1): Q/n + 2R/n + S(n − 3)/n, with R the average of edge midpoints.
-                const double n = valence;
-                const Point q = faceSum / n;
-                const Point r = (s * n + neighbourSum) / (2.0 * n);
-                moved[i] = q / n + r * (2.0 / n) + s * ((n - 3.0) / n);
-            }
-            moves[i] = 1;
-        });
-    }
-
-    // Topology, in index order.
-    m.reserve(nV + refinedCount, nE + 3 * refinedCount + m.n_halfedges() / 2, nF + m.n_halfedges());
-    std::vector<HalfedgeMesh::FaceHandle> fan;
-    for (std::size_t i = 0; i < nF; ++i) {
-        if (!refine[i]) continue;
-        const auto f = m.face_handle(int(i));
-        const auto vh = m.add_vertex(facePoint[i]);
-        if (!odd && m.property(kind, f) == kBoundaryEdge) {
-            // Split the boundary edge at its midpoint and join the midpoint to the apex.
-            HalfedgeMesh::HalfedgeHandle onBoundary;
-            for (const auto h : m.fh_range(f))
-                if (m.is_boundary(m.opposite_halfedge_handle(h))) onBoundary = h;
-            const auto apex = m.to_vertex_handle(m.next_halfedge_handle(onBoundary));
-            m.split_edge(m.edge_handle(onBoundary), vh);
-            HalfedgeMesh::HalfedgeHandle intoMid, outOfApex;
-            for (const auto h : m.fh_range(f)) {
-                if (m.to_vertex_handle(h) == vh) intoMid = h;
-                if (m.from_vertex_handle(h) == apex) outOfApex = h;
-            }
-            const auto joined = m.insert_edge(intoMid, outOfApex);
-            const auto other = m.face_handle(joined);
-            const auto keep = m.face_handle(m.opposite_halfedge_handle(joined));
-            for (const auto g : {other, keep}) {
-                m.property(kind, g) = kPlain;
-                m.property(tag, g) = m.property(tag, f);
-            }
-            continue;
+            const Point& w = m.point(m.to_vertex_handle(h));
+            neighbourSum += w;
+            if (m.is_boundary(m.edge_handle(h))) boundarySum += w;
+            ++valence;
         }
-        m.split_copy(f, vh);
-        for (const auto g : m.vf_range(vh)) m.property(kind, g) = kPlain;
-        if (odd)
-            for (const auto h : m.voh_range(vh)) {
-                // The fan triangle's old edge is opposite vh; if it lies on the boundary, the
-                // triangle remembers the edge's midpoint for the even step.
-                const auto old = m.next_halfedge_handle(h);
-                if (m.is_boundary(m.opposite_halfedge_handle(old))) {
-                    const auto g = m.face_handle(h);
-                    m.property(kind, g) = kBoundaryEdge;
-                    m.property(storedPoint, g) = edgePoint[std::size_t(m.edge_handle(old).idx())];
-                }
-            }
-    }
-    if (odd)
-        for (std::size_t i = 0; i < nV; ++i)
-            if (moves[i]) m.set_point(m.vertex_handle(int(i)), moved[i]);
-
-    for (const int e : removed) {
-        const auto eh = m.edge_handle(e);
-        const auto f0 = m.face_handle(m.halfedge_handle(eh, 0)), f1 = m.face_handle(m.halfedge_handle(eh, 1));
-        const std::uint32_t t = combine(m.property(tag, f0), m.property(tag, f1));
-        const auto merged = m.remove_edge(eh);
-        m.property(tag, merged) = t;
-        if (odd) {
-            m.property(kind, merged) = kStoredPoint;
-            m.property(storedPoint, merged) = edgePoint[std::size_t(e)];
+        if (m.is_boundary(v)) {
+            // Crease rule of a smooth boundary (OpenSubdiv's edge-only interpolation).
+            position[i] = s * 0.75 + boundarySum * 0.125;
         } else {
-            m.property(kind, merged) = kPlain;
+            // Eq. (1): Q/n + 2R/n + S(n − 3)/n, with R the average of edge midpoints.
+            const double n = valence;
+            const Point q = faceSum / n;
+            const Point r = (s * n + neighbourSum) / (2.0 * n);
+            position[i] = q / n + r * (2.0 / n) + s * ((n - 3.0) / n);
         }
+    });
+    parallelIndices(nF, [&](std::size_t f) {
+        if (refine[f]) position[newVertex[f]] = facePoint[f];
+    });
+
+    // The new polygons, face by face: an unrefined face as it is; a refined face's piece per
+    // halfedge u -> w is the triangle (u, w, P); two pieces across a removed edge are one quad
+    // (u, P_g, w, P_f), made by the face holding the edge's first halfedge. On the even step a
+    // boundary triangle has no piece on its boundary halfedge: that edge is split at P instead.
+    auto skipsHalfedge = [&](HalfedgeMesh::FaceHandle f, HalfedgeMesh::HalfedgeHandle h) {
+        return !odd && m.property(kind, f) == kBoundaryEdge && m.is_boundary(m.opposite_halfedge_handle(h));
+    };
+    std::vector<std::uint32_t> polyCount(nF + 1, 0), cornerCount(nF + 1, 0);
+    parallelIndices(nF, [&](std::size_t i) {
+        const auto f = m.face_handle(int(i));
+        std::uint32_t polys = 0, corners = 0;
+        if (!refine[i]) {
+            polys = 1;
+            corners = std::uint32_t(m.valence(f));
+        } else {
+            for (const auto h : m.fh_range(f)) {
+                if (skipsHalfedge(f, h)) continue;
+                if (!removed[std::size_t(m.edge_handle(h).idx())]) {
+                    ++polys;
+                    corners += 3;
+                } else if ((h.idx() & 1) == 0) {
+                    ++polys;
+                    corners += 4;
+                }
+            }
+        }
+        polyCount[i + 1] = polys;
+        cornerCount[i + 1] = corners;
+    });
+    for (std::size_t i = 0; i < nF; ++i) {
+        polyCount[i + 1] += polyCount[i];
+        cornerCount[i + 1] += cornerCount[i];
     }
-    m.garbage_collection();
+    const std::size_t newF = polyCount[nF];
+    std::vector<std::uint32_t> offsets(newF + 1), indices(cornerCount[nF]);
+    std::vector<std::uint8_t> newKind(newF);
+    std::vector<Point> newStored(newF);
+    std::vector<std::uint32_t> newTag(newF);
+    offsets[newF] = cornerCount[nF];
+    parallelIndices(nF, [&](std::size_t i) {
+        const auto f = m.face_handle(int(i));
+        std::uint32_t p = polyCount[i], c = cornerCount[i];
+        const std::uint32_t fTag = m.property(tag, f);
+        if (!refine[i]) {
+            offsets[p] = c;
+            for (const auto v : m.fv_range(f)) indices[c++] = std::uint32_t(v.idx());
+            newKind[p] = m.property(kind, f);
+            newStored[p] = m.property(storedPoint, f);
+            newTag[p] = fTag;
+            return;
+        }
+        const std::uint32_t pf = newVertex[i];
+        for (const auto h : m.fh_range(f)) {
+            if (skipsHalfedge(f, h)) continue;
+            const std::size_t e = std::size_t(m.edge_handle(h).idx());
+            const std::uint32_t u = std::uint32_t(m.from_vertex_handle(h).idx()), w = std::uint32_t(m.to_vertex_handle(h).idx());
+            if (!removed[e]) {
+                offsets[p] = c;
+                indices[c++] = u;
+                indices[c++] = w;
+                indices[c++] = pf;
+                const bool onBoundary = odd && m.is_boundary(m.opposite_halfedge_handle(h));
+                newKind[p] = onBoundary ? kBoundaryEdge : kPlain;
+                if (onBoundary) newStored[p] = edgePoint[e];
+                newTag[p] = fTag;
+                ++p;
+            } else if ((h.idx() & 1) == 0) {
+                const auto g = m.face_handle(m.opposite_halfedge_handle(h));
+                offsets[p] = c;
+                indices[c++] = u;
+                indices[c++] = newVertex[std::size_t(g.idx())];
+                indices[c++] = w;
+                indices[c++] = pf;
+                newKind[p] = odd ? kStoredPoint : kPlain;
+                if (odd) newStored[p] = edgePoint[e];
+                newTag[p] = combine(fTag, m.property(tag, g));
+                ++p;
+            }
+        }
+    });
+
+    subdiv::assemble(m, next, offsets, indices);
+    parallelIndices(next, [&](std::size_t i) { m.set_point(HalfedgeMesh::VertexHandle(int(i)), position[i]); });
+    m.property(kind).data_vector() = std::move(newKind);
+    m.property(storedPoint).data_vector() = std::move(newStored);
+    m.property(tag).data_vector() = std::move(newTag);
     ++steps;
 }
 
