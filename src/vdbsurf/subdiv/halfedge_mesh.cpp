@@ -93,30 +93,34 @@ void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>&
     using HH = HalfedgeMesh::HalfedgeHandle;
     using FH = HalfedgeMesh::FaceHandle;
     const std::size_t nF = offsets.size() - 1, nc = indices.size();
-    std::vector<std::uint32_t> nextCorner(nc), prevCorner(nc);
+    std::vector<std::uint32_t> nextCorner(nc);
     parallelFor(nF, [&](std::size_t f) {
         const std::uint32_t b = offsets[f], n = offsets[f + 1] - b;
-        for (std::uint32_t k = 0; k < n; ++k) {
-            nextCorner[b + k] = b + (k + 1 == n ? 0 : k + 1);
-            prevCorner[b + k] = b + (k == 0 ? n - 1 : k - 1);
-        }
+        for (std::uint32_t k = 0; k < n; ++k) nextCorner[b + k] = b + (k + 1 == n ? 0 : k + 1);
     });
     // Outgoing corners of each vertex; corner c is the halfedge indices[c] -> indices[next(c)].
-    std::vector<std::uint32_t> start(nV + 1, 0), outgoing(nc);
+    // Targets are stored beside the corners so the partner search reads one short run.
+    std::vector<std::uint32_t> start(nV + 1, 0), outgoing(nc), outgoingTo(nc);
     for (std::uint32_t v : indices) ++start[v + 1];
     for (std::size_t v = 0; v < nV; ++v) start[v + 1] += start[v];
     {
         std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-        for (std::uint32_t c = 0; c < nc; ++c) outgoing[fill[indices[c]]++] = c;
+        for (std::uint32_t c = 0; c < nc; ++c) {
+            const std::uint32_t slot = fill[indices[c]]++;
+            outgoing[slot] = c;
+            outgoingTo[slot] = indices[nextCorner[c]];
+        }
     }
     constexpr std::uint32_t kNone = ~0u;
     std::vector<std::uint32_t> partner(nc);
-    parallelFor(nc, [&](std::size_t c) {
-        const std::uint32_t u = indices[c], w = indices[nextCorner[c]];
-        std::uint32_t found = kNone;
-        for (std::uint32_t a = start[w]; a < start[w + 1]; ++a)
-            if (indices[nextCorner[outgoing[a]]] == u) found = outgoing[a];
-        partner[c] = found;
+    parallelFor(nV, [&](std::size_t u) {
+        for (std::uint32_t a = start[u]; a < start[u + 1]; ++a) {
+            const std::uint32_t w = outgoingTo[a];
+            std::uint32_t found = kNone;
+            for (std::uint32_t b = start[w]; b < start[w + 1]; ++b)
+                if (outgoingTo[b] == u) found = outgoing[b];
+            partner[outgoing[a]] = found;
+        }
     });
     // The lower corner of a pair (or a corner alone on the boundary) makes the edge.
     std::vector<std::uint32_t> halfedgeOf(nc);
