@@ -11,6 +11,7 @@
 #include <openvdb/openvdb.h>
 
 #include <cstring>
+#include <fstream>
 #include <sstream>
 
 using namespace vdbsurf;
@@ -153,4 +154,83 @@ TEST_CASE("a mesh written as a level set reads back as one, with metadata") {
     CHECK(f.value({0.6, 0, 0}) < 0);
     CHECK(f.value({0.5, 0.5, 0.5}) > 0);
     CHECK(f.value({0.5, 0.25, 0.25}) == Approx(0.0).margin(0.01));
+}
+
+TEST_CASE("OBJ reader: corner forms, negative indices, skipped statements, and errors naming the line") {
+    test::TempDir dir;
+    const std::string path = dir.path("in.obj");
+    {
+        std::ofstream out(path);
+        out << "# comment\nmtllib x.mtl\no thing\nv 0 0 0\nv 1 0 0 1.0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n"
+               "g group\ns 1\nf 1/1/1 2/1/1 3/1/1\nf -4//1 -2//1 -1//1\nl 1 2\nf 1/1 3 4\r\n";
+    }
+    const Mesh m = readMesh(path);
+    CHECK(m.points.size() == 4);
+    CHECK(m.points[1] == Vec3f(1, 0, 0));
+    REQUIRE(m.polygonCount() == 3);
+    CHECK(std::vector<std::uint32_t>(m.polygon(0), m.polygon(0) + 3) == std::vector<std::uint32_t>{0, 1, 2});
+    CHECK(std::vector<std::uint32_t>(m.polygon(1), m.polygon(1) + 3) == std::vector<std::uint32_t>{0, 2, 3});
+    CHECK(std::vector<std::uint32_t>(m.polygon(2), m.polygon(2) + 3) == std::vector<std::uint32_t>{0, 2, 3});
+
+    auto fails = [&](const std::string& text, const std::string& expected) {
+        std::ofstream(path) << text;
+        CHECK_THROWS_WITH(readMesh(path), Catch::Contains(path) && Catch::Contains(expected));
+    };
+    fails("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "line 4: face index 4 is out of range");
+    fails("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", "line 4: a face needs at least three vertices");
+    fails("v 0 0\n", "line 1: a vertex needs three numbers");
+    fails("v 0 0 nan\n", "not finite");
+    fails("v 0 0 0\nf 1 x 1\n", "not an index");
+    fails("v 0 0 0\n", "holds no polygons");
+    CHECK_THROWS_WITH(readMesh(dir.path("missing.obj")), Catch::Contains("missing.obj"));
+    CHECK_THROWS_WITH(readMesh(dir.path("in.stl")), Catch::Contains("unsupported"));
+}
+
+TEST_CASE("PLY reader: our binary files, ascii, big-endian, extra properties, and errors") {
+    test::TempDir dir;
+    const Mesh m = sampleMesh();
+    writeMesh(dir.path("m.ply"), m);
+    const Mesh back = readMesh(dir.path("m.ply"));
+    CHECK(back.points == m.points);
+    CHECK(back.indices == m.indices);
+    CHECK(back.offsets == m.offsets);
+
+    const std::string ascii = dir.path("a.ply");
+    std::ofstream(ascii) << "ply\nformat ascii 1.0\ncomment x\nelement vertex 4\nproperty double x\nproperty double y\n"
+                            "property double z\nproperty uchar red\nelement face 2\nproperty list uchar uint vertex_index\n"
+                            "property float quality\nelement edge 1\nproperty int a\nproperty int b\nend_header\n"
+                            "0 0 0 255\n1 0 0 0\n1 1 0 0\n0 1 0 0\n3 0 1 2 0.5\n3 0 2 3 0.5\n0 1\n";
+    const Mesh a = readMesh(ascii);
+    CHECK(a.points.size() == 4);
+    CHECK(a.polygonCount() == 2);
+    CHECK(a.points[2] == Vec3f(1, 1, 0));
+
+    // Big-endian: one triangle, float coordinates and int indices.
+    std::string be = "ply\nformat binary_big_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+    auto putBE = [&](std::uint32_t w) {
+        for (int s = 24; s >= 0; s -= 8) be.push_back(char((w >> s) & 0xff));
+    };
+    const float coords[9] = {0, 0, 0, 2, 0, 0, 0, 3, 0};
+    for (float f : coords) {
+        std::uint32_t w;
+        std::memcpy(&w, &f, 4);
+        putBE(w);
+    }
+    be.push_back(char(3));
+    for (std::uint32_t i : {0u, 1u, 2u}) putBE(i);
+    std::ofstream(dir.path("be.ply"), std::ios::binary) << be;
+    const Mesh b = readMesh(dir.path("be.ply"));
+    CHECK(b.points[1] == Vec3f(2, 0, 0));
+    CHECK(b.points[2] == Vec3f(0, 3, 0));
+    CHECK(b.polygonCount() == 1);
+
+    std::ofstream(dir.path("short.ply"), std::ios::binary) << be.substr(0, be.size() - 5);
+    CHECK_THROWS_WITH(readMesh(dir.path("short.ply")), Catch::Contains("short.ply") && Catch::Contains("ends before"));
+    std::ofstream(dir.path("range.ply")) << "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                            "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                                            "0 0 0\n3 0 0 5\n";
+    CHECK_THROWS_WITH(readMesh(dir.path("range.ply")), Catch::Contains("out of range"));
+    std::ofstream(dir.path("nomagic.ply")) << "solid x\n";
+    CHECK_THROWS_WITH(readMesh(dir.path("nomagic.ply")), Catch::Contains("not a PLY"));
 }

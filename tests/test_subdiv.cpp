@@ -279,3 +279,120 @@ TEST_CASE("subdivision refuses non-manifold edges and inconsistent orientation, 
     CHECK(countComponents(out) == 2);
     CHECK(out.points.size() == 2 * subdivideUniform(test::cubeMesh(), 2, "cube").points.size());
 }
+
+namespace {
+
+// A closed, finely tessellated ball: the cube after three Catmull-Clark levels, scaled up.
+Mesh ballMesh() {
+    Mesh m = subdivideUniform(test::cubeMesh(), 6, "cube");
+    for (Vec3f& p : m.points) p = (p - Vec3f(0.5f, 0.5f, 0.5f)) * 4.f;
+    return m;
+}
+
+} // namespace
+
+TEST_CASE("view-dependent refinement: silhouette deeper than front, back and unseen faces untouched, no cracks") {
+    const Mesh input = ballMesh();
+    ViewCamera cam;
+    cam.position = {0, 0, 12};
+    cam.target = {0, 0, 0};
+    cam.fovDegrees = 40;
+    cam.width = 800;
+    cam.height = 600;
+    ViewRefineOptions opt;
+    opt.frontDepth = 2;
+    opt.silhouetteDepth = 5;
+    ViewRefineReport rep;
+    const Mesh out = subdivideForView(input, cam, opt, "ball", &rep);
+    CHECK(checkTopology(out).closedManifoldOriented());
+    CHECK(rep.initialFront > 0);
+    CHECK(rep.initialSilhouette > 0);
+    REQUIRE(rep.refinedPerStep.size() == 5);
+    // Steps 3-5 refine silhouette faces only: far fewer than the front steps touched.
+    CHECK(rep.refinedPerStep[2] < rep.refinedPerStep[1]);
+
+    // Every back-facing input polygon that holds no silhouette vertex is still there, unchanged.
+    std::size_t backKept = 0, backTotal = 0;
+    using Key = std::vector<std::tuple<float, float, float>>;
+    std::map<Key, int> outPolys;
+    for (std::size_t f = 0; f < out.polygonCount(); ++f) {
+        Key p;
+        for (std::uint32_t k = 0; k < out.polygonSize(f); ++k) {
+            const Vec3f q = out.points[out.polygon(f)[k]];
+            p.emplace_back(q.x, q.y, q.z);
+        }
+        outPolys[p] = 1;
+    }
+    for (std::size_t f = 0; f < input.polygonCount(); ++f) {
+        Key p;
+        bool deepBack = true;
+        for (std::uint32_t k = 0; k < input.polygonSize(f); ++k) {
+            const Vec3f q = input.points[input.polygon(f)[k]];
+            p.emplace_back(q.x, q.y, q.z);
+            deepBack &= q.z < -0.4f * float(input.bounds().max.z); // well behind the silhouette near z = 0
+        }
+        if (!deepBack) continue;
+        ++backTotal;
+        backKept += outPolys.count(p);
+    }
+    CHECK(backTotal > 0);
+    CHECK(backKept == backTotal);
+
+    // Faces on the silhouette end smaller than front faces (near the view axis). Seen from
+    // distance d, a ball of radius R has its silhouette where z / |p| = R / d.
+    const double radius = input.bounds().max.z;
+    const double silhouetteZ = radius / 12.0;
+    double silhouetteEdge = 0, frontEdge = 0;
+    int silhouetteCount = 0, frontCount = 0;
+    for (std::size_t f = 0; f < out.polygonCount(); ++f) {
+        Vec3f c(0, 0, 0);
+        const std::uint32_t n = out.polygonSize(f);
+        for (std::uint32_t k = 0; k < n; ++k) c += out.points[out.polygon(f)[k]];
+        c = c / float(n);
+        const double zr = c.z / length(Vec3d(c));
+        const double edge = length(Vec3d(out.points[out.polygon(f)[0]] - out.points[out.polygon(f)[1]]));
+        if (std::abs(zr - silhouetteZ) < 0.04) {
+            silhouetteEdge += edge;
+            ++silhouetteCount;
+        } else if (zr > 0.9) {
+            frontEdge += edge;
+            ++frontCount;
+        }
+    }
+    REQUIRE(silhouetteCount > 0);
+    REQUIRE(frontCount > 0);
+    // Three more √2 steps shrink edges by (1/√2)^3 = 0.35.
+    CHECK(silhouetteEdge / silhouetteCount < 0.6 * frontEdge / frontCount);
+
+    // A camera looking away sees nothing: nothing is refined.
+    ViewCamera away = cam;
+    away.target = {0, 0, 24};
+    const Mesh none = subdivideForView(input, away, opt, "ball", &rep);
+    CHECK(none.polygonCount() == input.polygonCount());
+    CHECK(rep.outsideView == input.polygonCount());
+
+    // A far camera: faces soon cover less than a pixel and stop.
+    ViewCamera far = cam;
+    far.position = {0, 0, 4000};
+    const Mesh tiny = subdivideForView(input, far, opt, "ball", &rep);
+    CHECK(tiny.polygonCount() < out.polygonCount() / 4);
+}
+
+TEST_CASE("view-dependent refinement stays closed and manifold from many cameras") {
+    const Mesh input = test::quadTorusMesh(12, 8, 2.0, 0.7);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int trial = 0; trial < 10; ++trial) {
+        ViewCamera cam;
+        cam.position = normalized(Vec3d(u(rng), u(rng), u(rng))) * (4 + 4 * (u(rng) + 1));
+        cam.target = {u(rng), u(rng), u(rng) * 0.5};
+        cam.fovDegrees = 30 + 20 * (u(rng) + 1);
+        ViewRefineOptions opt;
+        opt.frontDepth = 3;
+        opt.silhouetteDepth = 6;
+        const Mesh out = subdivideForView(input, cam, opt, "torus");
+        INFO("trial " << trial);
+        CHECK(checkTopology(out).closedManifoldOriented());
+        CHECK(countComponents(out) == 1);
+    }
+}

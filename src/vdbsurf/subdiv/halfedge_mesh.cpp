@@ -200,7 +200,8 @@ Mesh toMesh(const HalfedgeMesh& mesh) {
     std::vector<std::uint32_t> poly;
     for (const auto fh : mesh.faces()) {
         poly.clear();
-        for (const auto vh : mesh.fv_range(fh)) poly.push_back(std::uint32_t(vh.idx()));
+        // assemble() makes a face's halfedge its first corner's, so this is the input's order.
+        for (const auto h : mesh.fh_range(fh)) poly.push_back(std::uint32_t(mesh.from_vertex_handle(h).idx()));
         out.addPolygon(poly.data(), poly.size());
     }
     return out;

@@ -217,7 +217,8 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
         const std::uint32_t fTag = m.property(tag, f);
         if (!refine[i]) {
             offsets[p] = c;
-            for (const auto v : m.fv_range(f)) indices[c++] = std::uint32_t(v.idx());
+            // From the face's first halfedge's start, so a face left alone keeps its corner order.
+            for (const auto h : m.fh_range(f)) indices[c++] = std::uint32_t(m.from_vertex_handle(h).idx());
             newKind[p] = m.property(kind, f);
             newStored[p] = m.property(storedPoint, f);
             newTag[p] = fTag;
