@@ -2,6 +2,7 @@
 // with a non-zero exit and no output file left behind.
 #include "support/test_support.h"
 
+#include "vdbsurf/mesh/mesh.h"
 #include "vdbsurf/vdb/vdb_file.h"
 
 #include <catch2/catch.hpp>
@@ -276,4 +277,142 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
     const auto now2 = dir.files();
     expectFailure(dir, {"edit", dir.path("plain.vdb"), "--set", "0.falloff=1", "-o", dir.path("bad.vdb")}, "plain.vdb",
                   "no grid named 'density'", now2);
+}
+
+namespace {
+
+void writeObjFile(const std::string& path, const Mesh& m) {
+    std::ofstream out(path);
+    for (const Vec3f& p : m.points) out << "v " << p.x << " " << p.y << " " << p.z << "\n";
+    for (std::size_t f = 0; f < m.polygonCount(); ++f) {
+        out << "f";
+        for (std::uint32_t k = 0; k < m.polygonSize(f); ++k) out << " " << m.polygon(f)[k] + 1;
+        out << "\n";
+    }
+}
+
+struct Image {
+    int width = 0, height = 0;
+    std::vector<unsigned char> rgb;
+    bool background(int x, int y) const {
+        const unsigned char* p = &rgb[3 * (std::size_t(y) * std::size_t(width) + std::size_t(x))];
+        return p[0] > 245 && p[1] > 245 && p[2] > 245;
+    }
+};
+
+// Binary PPM (P6, 8 bit), as POV-Ray writes with +FP.
+Image readPpm(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    auto token = [&] { // header tokens, skipping "# ..." comment lines
+        std::string t;
+        while (in >> t && t[0] == '#') std::getline(in, t);
+        return t;
+    };
+    Image img;
+    const std::string magic = token();
+    img.width = std::stoi(token());
+    img.height = std::stoi(token());
+    const int maxValue = std::stoi(token());
+    in.get();
+    REQUIRE(magic == "P6");
+    REQUIRE(maxValue == 255);
+    img.rgb.resize(std::size_t(img.width) * std::size_t(img.height) * 3);
+    in.read(reinterpret_cast<char*>(img.rgb.data()), std::streamsize(img.rgb.size()));
+    REQUIRE(in);
+    return img;
+}
+
+} // namespace
+
+TEST_CASE("subdivide: levels and steps, stats, view-dependent refinement, and clear errors") {
+    test::TempDir dir;
+    Mesh cube;
+    cube.points = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+    for (auto f : std::vector<std::vector<std::uint32_t>>{{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}})
+        cube.addPolygon(f.data(), f.size());
+    writeObjFile(dir.path("cube.obj"), cube);
+
+    auto r = runVdbsurf({"subdivide", dir.path("cube.obj"), "-o", dir.path("l2.obj"), "--levels", "2", "--stats", dir.path("s.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("4 sqrt2 steps (2 Catmull-Clark levels)") != std::string::npos);
+    auto stats = nlohmann::json::parse(test::readFile(dir.path("s.json")));
+    CHECK(stats["output_polygons"] == 96);
+    CHECK(stats["steps"] == 4);
+    r = runVdbsurf({"subdivide", dir.path("cube.obj"), "-o", dir.path("s3.ply"), "--steps", "3", "--stats", dir.path("s3.json")});
+    REQUIRE(r.exitCode == 0);
+    CHECK(nlohmann::json::parse(test::readFile(dir.path("s3.json")))["output_polygons"] == 48); // 6 -> 12 -> 24 -> 48
+
+    r = runVdbsurf({"subdivide", dir.path("cube.obj"), "-o", dir.path("view.obj"), "--camera-pos", "0.5,0.5,6", "--camera-target",
+                    "0.5,0.5,0.5", "--front-depth", "2", "--silhouette-depth", "4", "--stats", dir.path("v.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    stats = nlohmann::json::parse(test::readFile(dir.path("v.json")));
+    CHECK(stats["mode"] == "view");
+    CHECK(stats["view"]["refined_per_step"].size() == 4);
+    CHECK(stats["output_polygons"] > 24);  // more than the front depth everywhere would give the front
+    CHECK(stats["output_polygons"] < 384); // fewer than uniform to the silhouette depth
+
+    const std::vector<std::string> before = dir.files();
+    expectFailure(dir, {"subdivide", dir.path("cube.obj"), "-o", dir.path("x.stl")}, "x.stl", "unsupported output format", before);
+    expectFailure(dir, {"subdivide", dir.path("cube.obj"), "-o", dir.path("x.obj"), "--levels", "1", "--steps", "2"}, "--levels",
+                  "not both", before);
+    expectFailure(dir, {"subdivide", dir.path("cube.obj"), "-o", dir.path("x.obj"), "--camera-pos", "0,0,5"}, "--camera-target",
+                  "needs both", before);
+    expectFailure(dir, {"subdivide", dir.path("cube.obj"), "-o", dir.path("x.obj"), "--camera-pos", "0,0,5", "--camera-target", "0,0,5"},
+                  "camera", "target is at the camera position", before);
+    expectFailure(dir, {"subdivide", dir.path("missing.obj"), "-o", dir.path("x.obj")}, "missing.obj", "cannot open", before);
+    Mesh fin = cube;
+    fin.points.emplace_back(0.5f, -1.f, -1.f);
+    fin.addPolygon({0, 1, 8});
+    writeObjFile(dir.path("fin.obj"), fin);
+    const std::vector<std::string> withFin = dir.files();
+    expectFailure(dir, {"subdivide", dir.path("fin.obj"), "-o", dir.path("x.obj")}, "fin.obj", "same direction", withFin);
+}
+
+TEST_CASE("subdivide writes a POV-Ray scene that povray renders as the camera sees it") {
+    if (!test::onPath("povray")) {
+        WARN("skipped: povray is not installed (scripts/dev deps installs it)");
+        return;
+    }
+    test::TempDir dir;
+    // A cube up and to the right of the view axis: it must land in the upper right of the picture
+    // (POV-Ray is left-handed; a mirrored scene would put it on the left).
+    Mesh cube;
+    cube.points = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+    for (auto& p : cube.points) p = p + Vec3f(1.2f, 0.8f, 0);
+    for (auto f : std::vector<std::vector<std::uint32_t>>{{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}})
+        cube.addPolygon(f.data(), f.size());
+    writeObjFile(dir.path("cube.obj"), cube);
+    auto r = runVdbsurf({"subdivide", dir.path("cube.obj"), "-o", dir.path("scene.pov"), "--levels", "3", "--camera-pos", "0,0,8",
+                         "--camera-target", "0,0,0", "--fov", "50", "--image", "96,72"});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    const std::string pov = test::readFile(dir.path("scene.pov"));
+    CHECK(pov.find("mesh2") != std::string::npos);
+    CHECK(pov.find("vertex_vectors") != std::string::npos);
+    CHECK(pov.find("normal_vectors") != std::string::npos);
+    CHECK(pov.find("face_indices") != std::string::npos);
+
+    r = test::runProgram({"povray", "+Iscene.pov", "+Oimage.ppm", "+FP", "+W96", "+H72", "-D", "-V", "+A0.1"}, dir.root());
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    const Image img = readPpm(dir.path("image.ppm"));
+    REQUIRE(img.width == 96);
+    REQUIRE(img.height == 72);
+    std::size_t object = 0;
+    double sx = 0, sy = 0;
+    for (int y = 0; y < img.height; ++y)
+        for (int x = 0; x < img.width; ++x)
+            if (!img.background(x, y)) {
+                ++object;
+                sx += x;
+                sy += y;
+            }
+    CHECK(img.background(0, 0));
+    CHECK(img.background(img.width - 1, img.height - 1));
+    REQUIRE(object > 100);
+    CHECK(object < std::size_t(img.width * img.height / 2));
+    CHECK(sx / double(object) > img.width / 2.0);  // right of centre
+    CHECK(sy / double(object) < img.height / 2.0); // above centre (image rows grow downwards)
 }

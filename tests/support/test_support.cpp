@@ -109,8 +109,14 @@ std::string shellQuote(const std::string& s) {
 } // namespace
 
 RunResult runVdbsurf(const std::vector<std::string>& args) {
-    std::string cmd = shellQuote(VDBSURF_BIN);
-    for (const auto& a : args) cmd += " " + shellQuote(a);
+    std::vector<std::string> all{VDBSURF_BIN};
+    all.insert(all.end(), args.begin(), args.end());
+    return runProgram(all);
+}
+
+RunResult runProgram(const std::vector<std::string>& args, const std::string& workingDir) {
+    std::string cmd = workingDir.empty() ? std::string() : "cd " + shellQuote(workingDir) + " && ";
+    for (std::size_t i = 0; i < args.size(); ++i) cmd += (i ? " " : "") + shellQuote(args[i]);
     cmd += " 2>&1";
     RunResult r;
     FILE* pipe = ::popen(cmd.c_str(), "r");
@@ -131,6 +137,10 @@ std::string readFile(const std::string& path) {
 }
 
 bool fileExists(const std::string& path) { return fs::exists(path); }
+
+bool onPath(const std::string& program) {
+    return std::system(("command -v " + shellQuote(program) + " > /dev/null 2>&1").c_str()) == 0;
+}
 
 std::string sharedData(const std::string& relative) {
     const fs::path p = fs::path(VDBSURF_SHARED_DATA) / relative;

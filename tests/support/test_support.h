@@ -39,6 +39,9 @@ struct RunResult {
 };
 // Runs build/bin/vdbsurf with the arguments (shell-quoted here).
 RunResult runVdbsurf(const std::vector<std::string>& args);
+// Runs any program (args[0], found on PATH) in workingDir (or the current folder).
+RunResult runProgram(const std::vector<std::string>& args, const std::string& workingDir = "");
+bool onPath(const std::string& program);
 
 std::string readFile(const std::string& path);
 bool fileExists(const std::string& path);
