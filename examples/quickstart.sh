@@ -32,6 +32,16 @@ echo "== 6. move the head (primitive 1): only the leaves it touches are recomput
 "$vdbsurf" edit "$out/blobby.vdb" --set 1.center=1.25,0.6,0.1 -o "$out/blobby_moved.vdb" --scene-out "$out/blobby_moved.json"
 "$vdbsurf" mesh "$out/blobby_moved.vdb" -o "$out/blobby_moved.obj"
 
+echo "== 7. refine a coarse mesh of the scene by sqrt2-subdivision: uniformly, then for a camera (POV-Ray scene)"
+"$vdbsurf" -q mesh "$here/scenes/blobby.json" -o "$out/blobby_coarse.obj" --voxel-size 0.1
+"$vdbsurf" subdivide "$out/blobby_coarse.obj" -o "$out/blobby_smooth.obj" --levels 2
+"$vdbsurf" subdivide "$out/blobby_coarse.obj" -o "$out/blobby_view.pov" \
+  --camera-pos 2.4,2.0,6.4 --camera-target 0.15,-0.05,0 --fov 40 --image 640,480
+if command -v povray > /dev/null; then
+  (cd "$out" && povray +Iblobby_view.pov +Oblobby_view.png +W640 +H480 +A0.3 -D -V > /dev/null 2>&1) &&
+    echo "rendered $out/blobby_view.png with POV-Ray"
+fi
+
 echo
 echo "results are in $out:"
 ls -l "$out" | awk 'NR > 1 {print "  " $NF "  (" $5 " bytes)"}'
