@@ -88,16 +88,25 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
     return copiesOf;
 }
 
-void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices) {
-    using VH = HalfedgeMesh::VertexHandle;
-    using HH = HalfedgeMesh::HalfedgeHandle;
-    using FH = HalfedgeMesh::FaceHandle;
-    const std::size_t nF = offsets.size() - 1, nc = indices.size();
+namespace {
+
+std::vector<std::uint32_t> nextCorners(const std::vector<std::uint32_t>& offsets, std::size_t nc) {
     std::vector<std::uint32_t> nextCorner(nc);
-    parallelFor(nF, [&](std::size_t f) {
+    parallelFor(offsets.size() - 1, [&](std::size_t f) {
         const std::uint32_t b = offsets[f], n = offsets[f + 1] - b;
         for (std::uint32_t k = 0; k < n; ++k) nextCorner[b + k] = b + (k + 1 == n ? 0 : k + 1);
     });
+    return nextCorner;
+}
+
+void link(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
+          const std::vector<std::uint32_t>& nextCorner, const std::vector<std::uint32_t>& partner);
+
+} // namespace
+
+void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices) {
+    const std::size_t nc = indices.size();
+    const std::vector<std::uint32_t> nextCorner = nextCorners(offsets, nc);
     // Outgoing corners of each vertex; corner c is the halfedge indices[c] -> indices[next(c)].
     // Targets are stored beside the corners so the partner search reads one short run.
     std::vector<std::uint32_t> start(nV + 1, 0), outgoing(nc), outgoingTo(nc);
@@ -122,6 +131,23 @@ void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>&
             partner[outgoing[a]] = found;
         }
     });
+    link(m, nV, offsets, indices, nextCorner, partner);
+}
+
+void assembleWithPartners(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets,
+                          const std::vector<std::uint32_t>& indices, const std::vector<std::uint32_t>& partner) {
+    link(m, nV, offsets, indices, nextCorners(offsets, indices.size()), partner);
+}
+
+namespace {
+
+void link(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
+          const std::vector<std::uint32_t>& nextCorner, const std::vector<std::uint32_t>& partner) {
+    using VH = HalfedgeMesh::VertexHandle;
+    using HH = HalfedgeMesh::HalfedgeHandle;
+    using FH = HalfedgeMesh::FaceHandle;
+    constexpr std::uint32_t kNone = ~0u;
+    const std::size_t nF = offsets.size() - 1, nc = indices.size();
     // The lower corner of a pair (or a corner alone on the boundary) makes the edge.
     std::vector<std::uint32_t> halfedgeOf(nc);
     std::size_t nE = 0;
@@ -152,12 +178,18 @@ void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>&
             }
         }
     });
-    // A boundary vertex's halfedge must be its outgoing boundary halfedge (OpenMesh's rule).
+    // A boundary vertex's halfedge must be its outgoing boundary halfedge (OpenMesh's rule);
+    // otherwise the halfedge of the vertex's first corner.
+    std::vector<std::uint32_t> firstCorner(nV, kNone);
+    for (std::uint32_t c = 0; c < nc; ++c)
+        if (firstCorner[indices[c]] == kNone) firstCorner[indices[c]] = c;
     parallelFor(nV, [&](std::size_t v) {
         if (boundaryOut[v].is_valid()) m.set_halfedge_handle(VH(int(v)), boundaryOut[v]);
-        else if (start[v] < start[v + 1]) m.set_halfedge_handle(VH(int(v)), HH(int(halfedgeOf[outgoing[start[v]]])));
+        else if (firstCorner[v] != kNone) m.set_halfedge_handle(VH(int(v)), HH(int(halfedgeOf[firstCorner[v]])));
     });
 }
+
+} // namespace
 
 std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out) {
     for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {

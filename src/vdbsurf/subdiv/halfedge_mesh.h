@@ -36,6 +36,11 @@ std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, Ha
 void assemble(HalfedgeMesh& mesh, std::size_t vertexCount, const std::vector<std::uint32_t>& offsets,
               const std::vector<std::uint32_t>& indices);
 
+// The same, when the caller already knows each corner's partner (the corner running the other
+// way along its edge, or ~0u on the boundary), as a √2 step does from the old level's structure.
+void assembleWithPartners(HalfedgeMesh& mesh, std::size_t vertexCount, const std::vector<std::uint32_t>& offsets,
+                          const std::vector<std::uint32_t>& indices, const std::vector<std::uint32_t>& partner);
+
 // Positions (as float) and polygons, in the halfedge mesh's vertex and face order.
 Mesh toMesh(const HalfedgeMesh& mesh);
 

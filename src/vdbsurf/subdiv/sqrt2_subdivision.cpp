@@ -211,6 +211,11 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     std::vector<Point> newStored(newF);
     std::vector<std::uint32_t> newTag(newF);
     offsets[newF] = cornerCount[nF];
+    // Where each old halfedge's piece put its corners: the old edge u -> w (kept edges and
+    // unrefined faces), the spoke w -> P and the spoke P -> u. Each is written by one face only.
+    constexpr std::uint32_t kNone = ~0u;
+    const std::size_t nH = m.n_halfedges();
+    std::vector<std::uint32_t> edgeCorner(nH, kNone), spokeIn(nH, kNone), spokeOut(nH, kNone);
     parallelIndices(nF, [&](std::size_t i) {
         const auto f = m.face_handle(int(i));
         std::uint32_t p = polyCount[i], c = cornerCount[i];
@@ -218,7 +223,10 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
         if (!refine[i]) {
             offsets[p] = c;
             // From the face's first halfedge's start, so a face left alone keeps its corner order.
-            for (const auto h : m.fh_range(f)) indices[c++] = std::uint32_t(m.from_vertex_handle(h).idx());
+            for (const auto h : m.fh_range(f)) {
+                edgeCorner[std::size_t(h.idx())] = c;
+                indices[c++] = std::uint32_t(m.from_vertex_handle(h).idx());
+            }
             newKind[p] = m.property(kind, f);
             newStored[p] = m.property(storedPoint, f);
             newTag[p] = fTag;
@@ -229,8 +237,12 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
             if (skipsHalfedge(f, h)) continue;
             const std::size_t e = std::size_t(m.edge_handle(h).idx());
             const std::uint32_t u = std::uint32_t(m.from_vertex_handle(h).idx()), w = std::uint32_t(m.to_vertex_handle(h).idx());
+            const std::size_t hi = std::size_t(h.idx());
             if (!removed[e]) {
                 offsets[p] = c;
+                edgeCorner[hi] = c;
+                spokeIn[hi] = c + 1;
+                spokeOut[hi] = c + 2;
                 indices[c++] = u;
                 indices[c++] = w;
                 indices[c++] = pf;
@@ -241,7 +253,12 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
                 ++p;
             } else if ((h.idx() & 1) == 0) {
                 const auto g = m.face_handle(m.opposite_halfedge_handle(h));
+                const std::size_t oi = std::size_t(m.opposite_halfedge_handle(h).idx());
                 offsets[p] = c;
+                spokeIn[oi] = c;
+                spokeOut[oi] = c + 1;
+                spokeIn[hi] = c + 2;
+                spokeOut[hi] = c + 3;
                 indices[c++] = u;
                 indices[c++] = newVertex[std::size_t(g.idx())];
                 indices[c++] = w;
@@ -254,7 +271,17 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
         }
     });
 
-    subdiv::assemble(m, next, offsets, indices);
+    // Partners from the old structure: an old edge's corner pairs with its opposite's; a piece's
+    // spoke into P pairs with the next halfedge's spoke out of P (none where the even step split
+    // a boundary edge instead of making a piece).
+    std::vector<std::uint32_t> partner(indices.size(), kNone);
+    parallelIndices(nH, [&](std::size_t hi) {
+        const HalfedgeMesh::HalfedgeHandle h{int(hi)};
+        if (edgeCorner[hi] != kNone) partner[edgeCorner[hi]] = edgeCorner[std::size_t(m.opposite_halfedge_handle(h).idx())];
+        if (spokeIn[hi] != kNone) partner[spokeIn[hi]] = spokeOut[std::size_t(m.next_halfedge_handle(h).idx())];
+        if (spokeOut[hi] != kNone) partner[spokeOut[hi]] = spokeIn[std::size_t(m.prev_halfedge_handle(h).idx())];
+    });
+    subdiv::assembleWithPartners(m, next, offsets, indices, partner);
     parallelIndices(next, [&](std::size_t i) { m.set_point(HalfedgeMesh::VertexHandle(int(i)), position[i]); });
     m.property(kind).data_vector() = std::move(newKind);
     m.property(storedPoint).data_vector() = std::move(newStored);
