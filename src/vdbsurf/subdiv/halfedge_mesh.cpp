@@ -2,34 +2,20 @@
 
 #include "vdbsurf/core/error.h"
 
-#include <tbb/parallel_for.h>
-
 #include <vector>
 
 namespace vdbsurf::subdiv {
 
 namespace {
 
-template <typename F>
-void parallelFor(std::size_t n, F&& f) {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) f(i);
+std::vector<std::uint32_t> nextCorners(const std::vector<std::uint32_t>& offsets, std::size_t nc) {
+    std::vector<std::uint32_t> nextCorner(nc);
+    parallelFor(offsets.size() - 1, [&](std::size_t f) {
+        const std::uint32_t b = offsets[f], n = offsets[f + 1] - b;
+        for (std::uint32_t k = 0; k < n; ++k) nextCorner[b + k] = b + (k + 1 == n ? 0 : k + 1);
     });
+    return nextCorner;
 }
-
-// Corner c of `mesh` is indices[c]; its polygon's next and previous corners.
-struct Corners {
-    std::vector<std::uint32_t> next, prev;
-    explicit Corners(const Mesh& mesh) : next(mesh.indices.size()), prev(mesh.indices.size()) {
-        for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
-            const std::uint32_t b = mesh.offsets[f], n = mesh.polygonSize(f);
-            for (std::uint32_t k = 0; k < n; ++k) {
-                next[b + k] = b + (k + 1) % n;
-                prev[b + k] = b + (k + n - 1) % n;
-            }
-        }
-    }
-};
 
 std::uint32_t findRoot(std::vector<std::uint32_t>& parent, std::uint32_t x) {
     while (parent[x] != x) x = parent[x] = parent[parent[x]];
@@ -38,9 +24,12 @@ std::uint32_t findRoot(std::vector<std::uint32_t>& parent, std::uint32_t x) {
 
 } // namespace
 
-std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& inputName, std::vector<std::uint32_t>& cornerVertex) {
+std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& inputName, std::vector<std::uint32_t>& cornerVertex,
+                                           std::vector<std::uint32_t>& partner) {
     const std::size_t nc = mesh.indices.size();
-    const Corners corners(mesh);
+    const std::vector<std::uint32_t> next = nextCorners(mesh.offsets, nc);
+    std::vector<std::uint32_t> prev(nc);
+    for (std::uint32_t c = 0; c < nc; ++c) prev[next[c]] = c;
     // Corners of each vertex, grouped (counting sort keeps corner order within a vertex).
     std::vector<std::uint32_t> start(mesh.points.size() + 1, 0), byVertex(nc);
     for (std::uint32_t v : mesh.indices) ++start[v + 1];
@@ -50,18 +39,23 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
         for (std::uint32_t c = 0; c < nc; ++c) byVertex[fill[mesh.indices[c]]++] = c;
     }
     // Two corners of v belong to one fan when their polygons share an edge at v: corner c goes
-    // v -> w, and the neighbour's corner at v comes from w.
+    // v -> w, and the neighbour's corner d at v comes from w, so corner prev(d) runs w -> v and
+    // is c's partner.
+    partner.assign(nc, ~0u);
     std::vector<std::uint32_t> parent(nc);
     for (std::uint32_t c = 0; c < nc; ++c) parent[c] = c;
     for (std::size_t v = 0; v < mesh.points.size(); ++v)
         for (std::uint32_t a = start[v]; a < start[v + 1]; ++a) {
             const std::uint32_t c = byVertex[a];
-            const std::uint32_t w = mesh.indices[corners.next[c]];
+            const std::uint32_t w = mesh.indices[next[c]];
             for (std::uint32_t b = start[v]; b < start[v + 1]; ++b) {
                 const std::uint32_t d = byVertex[b];
                 if (d == c) continue;
-                if (mesh.indices[corners.prev[d]] == w) parent[findRoot(parent, c)] = findRoot(parent, d);
-                if (mesh.indices[corners.next[d]] == w)
+                if (mesh.indices[prev[d]] == w) {
+                    parent[findRoot(parent, c)] = findRoot(parent, d);
+                    partner[c] = prev[d];
+                }
+                if (mesh.indices[next[d]] == w)
                     throw Error(inputName, "two polygons run along the edge " + std::to_string(v) + "-" + std::to_string(w) +
                                                " in the same direction: they are oriented inconsistently, or the edge has "
                                                "three or more polygons; subdivision needs a manifold, consistently oriented mesh");
@@ -88,61 +82,9 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
     return copiesOf;
 }
 
-namespace {
-
-std::vector<std::uint32_t> nextCorners(const std::vector<std::uint32_t>& offsets, std::size_t nc) {
-    std::vector<std::uint32_t> nextCorner(nc);
-    parallelFor(offsets.size() - 1, [&](std::size_t f) {
-        const std::uint32_t b = offsets[f], n = offsets[f + 1] - b;
-        for (std::uint32_t k = 0; k < n; ++k) nextCorner[b + k] = b + (k + 1 == n ? 0 : k + 1);
-    });
-    return nextCorner;
-}
-
-void link(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
-          const std::vector<std::uint32_t>& nextCorner, const std::vector<std::uint32_t>& partner);
-
-} // namespace
-
-void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices) {
-    const std::size_t nc = indices.size();
-    const std::vector<std::uint32_t> nextCorner = nextCorners(offsets, nc);
-    // Outgoing corners of each vertex; corner c is the halfedge indices[c] -> indices[next(c)].
-    // Targets are stored beside the corners so the partner search reads one short run.
-    std::vector<std::uint32_t> start(nV + 1, 0), outgoing(nc), outgoingTo(nc);
-    for (std::uint32_t v : indices) ++start[v + 1];
-    for (std::size_t v = 0; v < nV; ++v) start[v + 1] += start[v];
-    {
-        std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
-        for (std::uint32_t c = 0; c < nc; ++c) {
-            const std::uint32_t slot = fill[indices[c]]++;
-            outgoing[slot] = c;
-            outgoingTo[slot] = indices[nextCorner[c]];
-        }
-    }
-    constexpr std::uint32_t kNone = ~0u;
-    std::vector<std::uint32_t> partner(nc);
-    parallelFor(nV, [&](std::size_t u) {
-        for (std::uint32_t a = start[u]; a < start[u + 1]; ++a) {
-            const std::uint32_t w = outgoingTo[a];
-            std::uint32_t found = kNone;
-            for (std::uint32_t b = start[w]; b < start[w + 1]; ++b)
-                if (outgoingTo[b] == u) found = outgoing[b];
-            partner[outgoing[a]] = found;
-        }
-    });
-    link(m, nV, offsets, indices, nextCorner, partner);
-}
-
-void assembleWithPartners(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets,
-                          const std::vector<std::uint32_t>& indices, const std::vector<std::uint32_t>& partner) {
-    link(m, nV, offsets, indices, nextCorners(offsets, indices.size()), partner);
-}
-
-namespace {
-
-void link(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
-          const std::vector<std::uint32_t>& nextCorner, const std::vector<std::uint32_t>& partner) {
+void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
+              const std::vector<std::uint32_t>& partner) {
+    const std::vector<std::uint32_t> nextCorner = nextCorners(offsets, indices.size());
     using VH = HalfedgeMesh::VertexHandle;
     using HH = HalfedgeMesh::HalfedgeHandle;
     using FH = HalfedgeMesh::FaceHandle;
@@ -189,8 +131,6 @@ void link(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& off
     });
 }
 
-} // namespace
-
 std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out) {
     for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
         const std::uint32_t* v = mesh.polygon(f);
@@ -200,8 +140,8 @@ std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, Ha
             for (std::uint32_t b = a + 1; b < n; ++b)
                 if (v[a] == v[b]) throw Error(inputName, "polygon " + std::to_string(f) + " repeats vertex " + std::to_string(v[a]));
     }
-    std::vector<std::uint32_t> cornerVertex;
-    const std::vector<std::uint32_t> copiesOf = splitVertexFans(mesh, inputName, cornerVertex);
+    std::vector<std::uint32_t> cornerVertex, partner;
+    const std::vector<std::uint32_t> copiesOf = splitVertexFans(mesh, inputName, cornerVertex, partner);
     const std::size_t total = mesh.points.size() + copiesOf.size();
     // Vertices keep the input's order among the used ones, then the copies.
     std::vector<char> isUsed(total, 0);
@@ -211,7 +151,7 @@ std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, Ha
     for (std::size_t i = 0; i < total; ++i)
         if (isUsed[i]) compact[i] = used++;
     for (std::uint32_t& i : cornerVertex) i = compact[i];
-    assemble(out, used, mesh.offsets, cornerVertex);
+    assemble(out, used, mesh.offsets, cornerVertex, partner);
     for (std::size_t i = 0; i < total; ++i)
         if (compact[i] != ~0u) {
             const Vec3f& p = mesh.points[i < mesh.points.size() ? i : copiesOf[i - mesh.points.size()]];

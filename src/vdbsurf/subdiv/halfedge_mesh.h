@@ -6,6 +6,7 @@
 #include "vdbsurf/mesh/mesh.h"
 
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+#include <tbb/parallel_for.h>
 
 #include <string>
 #include <vector>
@@ -16,30 +17,36 @@ namespace vdbsurf::subdiv {
 struct SubdivTraits : public OpenMesh::DefaultTraitsDouble {};
 using HalfedgeMesh = OpenMesh::PolyMesh_ArrayKernelT<SubdivTraits>;
 
+// f(i) for i in [0, n) over TBB; every subdivision loop writes only entry i, so the result does
+// not depend on how the range is split.
+template <typename F>
+void parallelFor(std::size_t n, F&& f) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i != r.end(); ++i) f(i);
+    });
+}
+
 // Non-manifold vertices (several fans of polygons meeting at one point, as where two blobs
 // touch) are split: each further fan gets its own copy of the vertex. cornerVertex receives
-// the vertex of every corner (indices into points, then the copies); returns the source
-// vertex of each copy.
-std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, std::vector<std::uint32_t>& cornerVertex);
+// the vertex of every corner (indices into points, then the copies), partner the corner running
+// the other way along each corner's edge (~0u on the boundary); returns the source vertex of
+// each copy. Throws Error naming inputName when two polygons run along an edge in the same
+// direction (inconsistent orientation, or an edge of three or more polygons).
+std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& inputName, std::vector<std::uint32_t>& cornerVertex,
+                                           std::vector<std::uint32_t>& partner);
 
 // Builds the halfedge mesh of `mesh` after splitVertexFans, and returns how many vertex copies
-// that made. Throws Error naming `inputName` when a polygon cannot be added (repeated vertex,
-// an edge used by three polygons, or two neighbours with opposite orientation). Vertices no
-// polygon uses are dropped.
+// that made. Throws Error naming `inputName` for a polygon of fewer than three corners or with a
+// repeated vertex, and as splitVertexFans does. Vertices no polygon uses are dropped.
 std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, HalfedgeMesh& out);
 
-// Replaces the connectivity of `mesh` with the polygons given (vertex indices < vertexCount),
-// keeping registered properties. Halfedges are paired through each vertex's outgoing corners,
-// edges numbered in corner order, so the result is the same for any thread count. The polygons
-// must form a manifold, consistently oriented surface (as splitVertexFans checks, and as every
-// √2 step preserves); points are left for the caller to set.
+// Replaces the connectivity of `mesh` with the polygons given (vertex indices < vertexCount) and
+// each corner's partner (the corner running the other way along its edge, or ~0u on the
+// boundary), keeping registered properties. Edges are numbered in corner order, so the result is
+// the same for any thread count. The polygons must form a manifold, consistently oriented surface
+// (as splitVertexFans checks, and as every √2 step preserves); points are left to the caller.
 void assemble(HalfedgeMesh& mesh, std::size_t vertexCount, const std::vector<std::uint32_t>& offsets,
-              const std::vector<std::uint32_t>& indices);
-
-// The same, when the caller already knows each corner's partner (the corner running the other
-// way along its edge, or ~0u on the boundary), as a √2 step does from the old level's structure.
-void assembleWithPartners(HalfedgeMesh& mesh, std::size_t vertexCount, const std::vector<std::uint32_t>& offsets,
-                          const std::vector<std::uint32_t>& indices, const std::vector<std::uint32_t>& partner);
+              const std::vector<std::uint32_t>& indices, const std::vector<std::uint32_t>& partner);
 
 // Positions (as float) and polygons, in the halfedge mesh's vertex and face order.
 Mesh toMesh(const HalfedgeMesh& mesh);

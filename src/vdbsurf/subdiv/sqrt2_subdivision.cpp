@@ -7,7 +7,6 @@
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/subdiv/halfedge_mesh.h"
 
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 
@@ -24,13 +23,6 @@ enum FaceKind : std::uint8_t {
     kStoredPoint = 1, // merged quad of an odd step: next face point is the stored edge point
     kBoundaryEdge = 2 // fan triangle on a boundary edge: the even step splits that edge at the stored midpoint
 };
-
-template <typename F>
-void parallelIndices(std::size_t n, F&& f) {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i != r.end(); ++i) f(i);
-    });
-}
 
 } // namespace
 
@@ -114,7 +106,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     // Face points: stored ones on the even step, vertex averages otherwise. On the even step a
     // boundary triangle's stored point is its boundary edge's midpoint, where the edge splits.
     std::vector<Point> facePoint(nF);
-    parallelIndices(nF, [&](std::size_t i) {
+    subdiv::parallelFor(nF, [&](std::size_t i) {
         if (!refine[i]) return;
         const auto f = m.face_handle(int(i));
         facePoint[i] = (!odd && m.property(kind, f) != kPlain) ? m.property(storedPoint, f) : centroid(f);
@@ -124,7 +116,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     // points go to the merged quads, and boundary edges beside a refined face keep a midpoint.
     std::vector<std::uint8_t> removed(nE);
     std::vector<Point> edgePoint(odd ? nE : 0);
-    parallelIndices(nE, [&](std::size_t e) {
+    subdiv::parallelFor(nE, [&](std::size_t e) {
         const auto eh = m.edge_handle(int(e));
         const auto h0 = m.halfedge_handle(eh, 0), h1 = m.halfedge_handle(eh, 1);
         const auto f0 = m.face_handle(h0), f1 = m.face_handle(h1);
@@ -139,7 +131,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     // New positions: old vertices (moved on the odd step when every face around them is
     // refined), then the face points.
     std::vector<Point> position(next);
-    parallelIndices(nV, [&](std::size_t i) {
+    subdiv::parallelFor(nV, [&](std::size_t i) {
         const auto v = m.vertex_handle(int(i));
         const Point& s = m.point(v);
         position[i] = s;
@@ -168,7 +160,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
             position[i] = q / n + r * (2.0 / n) + s * ((n - 3.0) / n);
         }
     });
-    parallelIndices(nF, [&](std::size_t f) {
+    subdiv::parallelFor(nF, [&](std::size_t f) {
         if (refine[f]) position[newVertex[f]] = facePoint[f];
     });
 
@@ -180,7 +172,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
         return !odd && m.property(kind, f) == kBoundaryEdge && m.is_boundary(m.opposite_halfedge_handle(h));
     };
     std::vector<std::uint32_t> polyCount(nF + 1, 0), cornerCount(nF + 1, 0);
-    parallelIndices(nF, [&](std::size_t i) {
+    subdiv::parallelFor(nF, [&](std::size_t i) {
         const auto f = m.face_handle(int(i));
         std::uint32_t polys = 0, corners = 0;
         if (!refine[i]) {
@@ -216,7 +208,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     constexpr std::uint32_t kNone = ~0u;
     const std::size_t nH = m.n_halfedges();
     std::vector<std::uint32_t> edgeCorner(nH, kNone), spokeIn(nH, kNone), spokeOut(nH, kNone);
-    parallelIndices(nF, [&](std::size_t i) {
+    subdiv::parallelFor(nF, [&](std::size_t i) {
         const auto f = m.face_handle(int(i));
         std::uint32_t p = polyCount[i], c = cornerCount[i];
         const std::uint32_t fTag = m.property(tag, f);
@@ -275,14 +267,14 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     // spoke into P pairs with the next halfedge's spoke out of P (none where the even step split
     // a boundary edge instead of making a piece).
     std::vector<std::uint32_t> partner(indices.size(), kNone);
-    parallelIndices(nH, [&](std::size_t hi) {
+    subdiv::parallelFor(nH, [&](std::size_t hi) {
         const HalfedgeMesh::HalfedgeHandle h{int(hi)};
         if (edgeCorner[hi] != kNone) partner[edgeCorner[hi]] = edgeCorner[std::size_t(m.opposite_halfedge_handle(h).idx())];
         if (spokeIn[hi] != kNone) partner[spokeIn[hi]] = spokeOut[std::size_t(m.next_halfedge_handle(h).idx())];
         if (spokeOut[hi] != kNone) partner[spokeOut[hi]] = spokeIn[std::size_t(m.prev_halfedge_handle(h).idx())];
     });
-    subdiv::assembleWithPartners(m, next, offsets, indices, partner);
-    parallelIndices(next, [&](std::size_t i) { m.set_point(HalfedgeMesh::VertexHandle(int(i)), position[i]); });
+    subdiv::assemble(m, next, offsets, indices, partner);
+    subdiv::parallelFor(next, [&](std::size_t i) { m.set_point(HalfedgeMesh::VertexHandle(int(i)), position[i]); });
     m.property(kind).data_vector() = std::move(newKind);
     m.property(storedPoint).data_vector() = std::move(newStored);
     m.property(tag).data_vector() = std::move(newTag);
@@ -314,16 +306,15 @@ void Sqrt2Subdivider::faceVertices(std::size_t f, std::vector<std::uint32_t>& ou
     for (const auto v : mImpl->mesh.fv_range(mImpl->mesh.face_handle(int(f)))) out.push_back(std::uint32_t(v.idx()));
 }
 
-void Sqrt2Subdivider::edgeFaces(std::vector<std::pair<std::int64_t, std::int64_t>>& out,
-                                std::vector<std::pair<std::uint32_t, std::uint32_t>>* edgeVertices) const {
+void Sqrt2Subdivider::edgeFaces(std::vector<std::pair<std::int64_t, std::int64_t>>& faces,
+                                std::vector<std::pair<std::uint32_t, std::uint32_t>>& vertices) const {
     const HalfedgeMesh& m = mImpl->mesh;
-    out.resize(m.n_edges());
-    if (edgeVertices) edgeVertices->resize(m.n_edges());
+    faces.resize(m.n_edges());
+    vertices.resize(m.n_edges());
     for (const auto e : m.edges()) {
         const auto h0 = m.halfedge_handle(e, 0), h1 = m.halfedge_handle(e, 1);
-        out[std::size_t(e.idx())] = {m.face_handle(h0).idx(), m.face_handle(h1).idx()};
-        if (edgeVertices)
-            (*edgeVertices)[std::size_t(e.idx())] = {std::uint32_t(m.to_vertex_handle(h0).idx()), std::uint32_t(m.to_vertex_handle(h1).idx())};
+        faces[std::size_t(e.idx())] = {m.face_handle(h0).idx(), m.face_handle(h1).idx()};
+        vertices[std::size_t(e.idx())] = {std::uint32_t(m.to_vertex_handle(h0).idx()), std::uint32_t(m.to_vertex_handle(h1).idx())};
     }
 }
 
@@ -348,8 +339,8 @@ Mesh subdivideAdaptive(const Mesh& mesh, const std::vector<int>& targetSteps, co
     for (int i = 1; i <= deepest; ++i) {
         const std::vector<std::uint32_t> t = s.tags();
         std::vector<std::uint8_t> refine(t.size());
-        // Faces that stopped earlier must stay stopped (only the previous step's faces may refine),
-        // so a stopped face's tag is cleared when it stops.
+        // A face whose target is below i stopped earlier; its tag never rises again (merged faces
+        // take the larger tag of two faces refined together), so it stays stopped.
         for (std::size_t f = 0; f < t.size(); ++f) refine[f] = t[f] >= std::uint32_t(i);
         s.step(refine);
     }

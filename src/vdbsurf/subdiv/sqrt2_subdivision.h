@@ -62,8 +62,8 @@ public:
     std::vector<Vec3d> positions() const; // double positions, for comparisons
     // Vertices of face f in order; for the view-dependent refiner's per-face tests.
     void faceCorners(std::size_t f, std::vector<Vec3d>& out) const;
-    // Face indices around each edge (−1 for a boundary side), for silhouette tests.
-    void edgeFaces(std::vector<std::pair<std::int64_t, std::int64_t>>& out, std::vector<std::pair<std::uint32_t, std::uint32_t>>* edgeVertices) const;
+    // Per edge, its two faces (−1 for a boundary side) and its two vertices, for silhouette tests.
+    void edgeFaces(std::vector<std::pair<std::int64_t, std::int64_t>>& faces, std::vector<std::pair<std::uint32_t, std::uint32_t>>& vertices) const;
     // Vertex indices of face f.
     void faceVertices(std::size_t f, std::vector<std::uint32_t>& out) const;
 

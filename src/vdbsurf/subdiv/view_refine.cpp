@@ -72,7 +72,7 @@ std::vector<FaceView> classifyAll(const Sqrt2Subdivider& s, const CameraProjecti
 std::vector<std::uint8_t> silhouetteFaces(const Sqrt2Subdivider& s, const std::vector<FaceView>& views) {
     std::vector<std::pair<std::int64_t, std::int64_t>> edgeFaces;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> edgeVertices;
-    s.edgeFaces(edgeFaces, &edgeVertices);
+    s.edgeFaces(edgeFaces, edgeVertices);
     std::vector<std::uint8_t> silhouetteVertex(s.vertexCount(), 0);
     for (std::size_t e = 0; e < edgeFaces.size(); ++e) {
         const auto [a, b] = edgeFaces[e];
