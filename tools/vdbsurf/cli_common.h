@@ -4,6 +4,7 @@
 #include "vdbsurf/core/vec3.h"
 
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <nlohmann/json.hpp>
 
 #include <functional>
@@ -28,6 +29,10 @@ void note(const std::string& text);
 // "a,b,c" -> numbers; throws Error naming the option when the count or a number is wrong.
 std::vector<double> parseNumbers(const std::string& option, const std::string& text, std::size_t count);
 Box3 parseBox(const std::string& option, const std::string& text);
+
+// Seconds elapsed since t, for the timings commands report.
+using Clock = std::chrono::steady_clock;
+inline double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 // Writes j (indented) to path atomically; throws Error naming path.
 void writeJsonFile(const std::string& path, const nlohmann::json& j);

@@ -17,16 +17,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include <chrono>
 #include <fstream>
 #include <sstream>
 
 namespace vdbsurf::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 std::string num(double v) {
     std::ostringstream s;

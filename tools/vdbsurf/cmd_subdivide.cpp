@@ -10,7 +10,6 @@
 #include "vdbsurf/subdiv/sqrt2_subdivision.h"
 #include "vdbsurf/subdiv/view_refine.h"
 
-#include <chrono>
 #include <optional>
 #include <sstream>
 
@@ -34,7 +33,6 @@ Vec3d parseVec(const std::string& option, const std::string& text) {
 }
 
 void runSubdivide(const SubdivideOptions& o) {
-    using Clock = std::chrono::steady_clock;
     const auto t0 = Clock::now();
     if (o.threads < 0) throw Error("--threads", "must be 0 (all cores) or a positive number");
     const MeshFormat format = meshFormatOf(o.output);
@@ -99,7 +97,7 @@ void runSubdivide(const SubdivideOptions& o) {
         out = s.mesh();
         how = "uniform: " + std::to_string(steps) + " sqrt2 steps" + (steps % 2 == 0 ? " (" + std::to_string(steps / 2) + " Catmull-Clark levels)" : "");
     }
-    const double secondsRefine = std::chrono::duration<double>(Clock::now() - tRefine).count();
+    const double secondsRefine = since(tRefine);
     if (splitVertices)
         note(o.input + ": " + std::to_string(splitVertices) +
              " non-manifold vertices (separate fans of polygons meeting at a point) were split, one copy per fan");
@@ -119,7 +117,7 @@ void runSubdivide(const SubdivideOptions& o) {
                          {"output_polygons", out.polygonCount()},
                          {"threads", threads.threads()},
                          {"split_vertices", splitVertices},
-                         {"seconds", {{"refine", secondsRefine}, {"total", std::chrono::duration<double>(Clock::now() - t0).count()}}}};
+                         {"seconds", {{"refine", secondsRefine}, {"total", since(t0)}}}};
         if (viewDependent)
             j["view"] = {{"front_depth", o.frontDepth},         {"silhouette_depth", o.silhouetteDepth},
                          {"initial_front", view.initialFront}, {"initial_silhouette", view.initialSilhouette},

@@ -1,11 +1,11 @@
 #include "vdbsurf/density/scene_json.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/read_file.h"
 
 #include <nlohmann/json.hpp>
 
 #include <cmath>
-#include <fstream>
 #include <set>
 #include <sstream>
 
@@ -133,11 +133,7 @@ DensityScene parseSceneText(const std::string& text, const std::string& source) 
 }
 
 DensityScene readSceneFile(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw Error(path, "cannot open (no such file, or not readable)");
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return parseSceneText(ss.str(), path);
+    return parseSceneText(readWholeFile(path), path);
 }
 
 std::string sceneToJsonText(const std::vector<Primitive>& primitives, std::optional<double> voxelSize) {
