@@ -2,7 +2,8 @@
 // with a non-zero exit and no output file left behind.
 #include "support/test_support.h"
 
-#include "vdbsurf/mesh/mesh.h"
+#include "support/shapes.h"
+#include "vdbsurf/mesh/mesh_io.h"
 #include "vdbsurf/vdb/vdb_file.h"
 
 #include <catch2/catch.hpp>
@@ -281,16 +282,6 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
 
 namespace {
 
-void writeObjFile(const std::string& path, const Mesh& m) {
-    std::ofstream out(path);
-    for (const Vec3f& p : m.points) out << "v " << p.x << " " << p.y << " " << p.z << "\n";
-    for (std::size_t f = 0; f < m.polygonCount(); ++f) {
-        out << "f";
-        for (std::uint32_t k = 0; k < m.polygonSize(f); ++k) out << " " << m.polygon(f)[k] + 1;
-        out << "\n";
-    }
-}
-
 struct Image {
     int width = 0, height = 0;
     std::vector<unsigned char> rgb;
@@ -326,11 +317,8 @@ Image readPpm(const std::string& path) {
 
 TEST_CASE("subdivide: levels and steps, stats, view-dependent refinement, and clear errors") {
     test::TempDir dir;
-    Mesh cube;
-    cube.points = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
-    for (auto f : std::vector<std::vector<std::uint32_t>>{{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}})
-        cube.addPolygon(f.data(), f.size());
-    writeObjFile(dir.path("cube.obj"), cube);
+    const Mesh cube = test::cubeMesh();
+    writeMesh(dir.path("cube.obj"), cube);
 
     auto r = runVdbsurf({"subdivide", dir.path("cube.obj"), "-o", dir.path("l2.obj"), "--levels", "2", "--stats", dir.path("s.json")});
     INFO(r.output);
@@ -350,7 +338,7 @@ TEST_CASE("subdivide: levels and steps, stats, view-dependent refinement, and cl
     stats = nlohmann::json::parse(test::readFile(dir.path("v.json")));
     CHECK(stats["mode"] == "view");
     CHECK(stats["view"]["refined_per_step"].size() == 4);
-    CHECK(stats["output_polygons"] > 24);  // more than the front depth everywhere would give the front
+    CHECK(stats["output_polygons"] > 24);  // the front faces went past the 24 of one level
     CHECK(stats["output_polygons"] < 384); // fewer than uniform to the silhouette depth
 
     const std::vector<std::string> before = dir.files();
@@ -365,7 +353,7 @@ TEST_CASE("subdivide: levels and steps, stats, view-dependent refinement, and cl
     Mesh fin = cube;
     fin.points.emplace_back(0.5f, -1.f, -1.f);
     fin.addPolygon({0, 1, 8});
-    writeObjFile(dir.path("fin.obj"), fin);
+    writeMesh(dir.path("fin.obj"), fin);
     const std::vector<std::string> withFin = dir.files();
     expectFailure(dir, {"subdivide", dir.path("fin.obj"), "-o", dir.path("x.obj")}, "fin.obj", "same direction", withFin);
 }
@@ -378,12 +366,9 @@ TEST_CASE("subdivide writes a POV-Ray scene that povray renders as the camera se
     test::TempDir dir;
     // A cube up and to the right of the view axis: it must land in the upper right of the picture
     // (POV-Ray is left-handed; a mirrored scene would put it on the left).
-    Mesh cube;
-    cube.points = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {1, 1, 1}, {0, 1, 1}};
+    Mesh cube = test::cubeMesh();
     for (auto& p : cube.points) p = p + Vec3f(1.2f, 0.8f, 0);
-    for (auto f : std::vector<std::vector<std::uint32_t>>{{0, 3, 2, 1}, {4, 5, 6, 7}, {0, 1, 5, 4}, {1, 2, 6, 5}, {2, 3, 7, 6}, {3, 0, 4, 7}})
-        cube.addPolygon(f.data(), f.size());
-    writeObjFile(dir.path("cube.obj"), cube);
+    writeMesh(dir.path("cube.obj"), cube);
     auto r = runVdbsurf({"subdivide", dir.path("cube.obj"), "-o", dir.path("scene.pov"), "--levels", "3", "--camera-pos", "0,0,8",
                          "--camera-target", "0,0,0", "--fov", "50", "--image", "96,72"});
     INFO(r.output);
