@@ -4,6 +4,7 @@
 // interface (sqrt2_subdivision.h) speaks Mesh, so OpenMesh's headers stay out of the rest.
 #pragma once
 #include "vdbsurf/mesh/mesh.h"
+#include "vdbsurf/mesh/vertex_fans.h"
 
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 #include <tbb/parallel_for.h>
@@ -25,15 +26,6 @@ void parallelFor(std::size_t n, F&& f) {
         for (std::size_t i = r.begin(); i != r.end(); ++i) f(i);
     });
 }
-
-// Non-manifold vertices (several fans of polygons meeting at one point, as where two blobs
-// touch) are split: each further fan gets its own copy of the vertex. cornerVertex receives
-// the vertex of every corner (indices into points, then the copies), partner the corner running
-// the other way along each corner's edge (~0u on the boundary); returns the source vertex of
-// each copy. Throws Error naming inputName when two polygons run along an edge in the same
-// direction (inconsistent orientation, or an edge of three or more polygons).
-std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& inputName, std::vector<std::uint32_t>& cornerVertex,
-                                           std::vector<std::uint32_t>& partner);
 
 // Builds the halfedge mesh of `mesh` after splitVertexFans, and returns how many vertex copies
 // that made. Throws Error naming `inputName` for a polygon of fewer than three corners or with a

@@ -1,0 +1,83 @@
+#include "vdbsurf/reeb/closed_surface.h"
+
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/core/union_find.h"
+#include "vdbsurf/mesh/vertex_fans.h"
+
+#include <cmath>
+
+namespace vdbsurf::reeb {
+
+double ClosedSurface::meanEdgeLength() const {
+    double sum = 0;
+    std::size_t n = 0;
+    for (std::uint32_t c = 0; c < vertex.size(); ++c)
+        if (c < opposite[c]) {
+            sum += length(points[vertex[next(c)]] - points[vertex[c]]);
+            ++n;
+        }
+    return n ? sum / double(n) : 0.0;
+}
+
+ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName) {
+    if (mesh.empty()) throw Error(inputName, "the mesh has no polygons");
+    for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
+        const std::uint32_t n = mesh.polygonSize(p);
+        const std::uint32_t* vs = mesh.polygon(p);
+        if (n < 3) throw Error(inputName, "polygon " + std::to_string(p) + " has fewer than three corners");
+        for (std::uint32_t i = 0; i < n; ++i)
+            for (std::uint32_t j = i + 1; j < n; ++j)
+                if (vs[i] == vs[j])
+                    throw Error(inputName, "polygon " + std::to_string(p) + " uses vertex " + std::to_string(vs[i]) + " twice");
+    }
+    // Fan every polygon into triangles first, so the fan analysis sees the triangles' edges.
+    Mesh tris;
+    std::vector<std::uint32_t> polygonOf;
+    tris.points = mesh.points;
+    for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
+        const std::uint32_t* vs = mesh.polygon(p);
+        for (std::uint32_t k = 1; k + 1 < mesh.polygonSize(p); ++k) {
+            tris.addPolygon({vs[0], vs[k], vs[k + 1]});
+            polygonOf.push_back(std::uint32_t(p));
+        }
+    }
+    std::vector<std::uint32_t> cornerVertex, partner;
+    const std::vector<std::uint32_t> copies = splitVertexFans(tris, inputName, cornerVertex, partner);
+    if (!copies.empty())
+        throw Error(inputName, "vertex " + std::to_string(copies.front()) + " joins " + "separate fans of polygons (a non-manifold vertex" +
+                                   (copies.size() > 1 ? ", and " + std::to_string(copies.size() - 1) + " more" : std::string()) +
+                                   "); the Reeb graph needs a closed manifold surface");
+    for (std::uint32_t c = 0; c < partner.size(); ++c)
+        if (partner[c] == ~0u)
+            throw Error(inputName, "the surface is open: the edge " + std::to_string(tris.indices[c]) + "-" +
+                                       std::to_string(tris.indices[ClosedSurface::next(c)]) +
+                                       " has one polygon; the Reeb graph needs a closed surface");
+
+    ClosedSurface s;
+    std::vector<std::uint32_t> local(mesh.points.size(), ~0u);
+    s.vertex.resize(tris.indices.size());
+    for (std::size_t c = 0; c < tris.indices.size(); ++c) {
+        std::uint32_t& l = local[tris.indices[c]];
+        if (l == ~0u) {
+            l = std::uint32_t(s.points.size());
+            const Vec3f& p = mesh.points[tris.indices[c]];
+            if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+                throw Error(inputName, "vertex " + std::to_string(tris.indices[c]) + " is not a finite point");
+            s.points.push_back(Vec3d(p));
+            s.inputVertex.push_back(tris.indices[c]);
+            s.vertexCorner.push_back(std::uint32_t(c));
+        }
+        s.vertex[c] = l;
+    }
+    s.opposite = std::move(partner);
+    s.polygon = std::move(polygonOf);
+    s.edgeOf.assign(s.vertex.size(), 0);
+    for (std::uint32_t c = 0; c < s.vertex.size(); ++c)
+        if (c < s.opposite[c]) s.edgeOf[c] = s.edgeOf[s.opposite[c]] = std::uint32_t(s.edgeCount++);
+    UnionFind uf(s.points.size());
+    for (std::uint32_t c = 0; c < s.vertex.size(); ++c) uf.unite(s.vertex[c], s.vertex[ClosedSurface::next(c)]);
+    for (std::uint32_t v = 0; v < s.points.size(); ++v) s.components += uf.find(v) == v;
+    return s;
+}
+
+} // namespace vdbsurf::reeb
