@@ -68,7 +68,7 @@ TEST_CASE("Reeb graph of an upright torus: 4 nodes, 4 arcs, one loop", "[reeb]")
 TEST_CASE("Patches of a torus join without gaps", "[reeb][patches]") {
     const Mesh m = dmcMesh(torusFormula(1.0, 0.35, Vec3d(0, 1, 0.3)), 1.5, 0.06);
     const ReebGraph g = reebOf(m, Vec3d(0, 0, 1), 0.5);
-    const PatchSet set = fitPatches(g);
+    const PatchSet set = fitPatches(g, ringGrids(g));
     CHECK(maxJoinGap(set) < 1e-9);
     for (const UnitPatch& p : set.patches) {
         INFO("U " << p.grid.U << " V " << p.grid.V << " nu " << p.surface.nu << " nv " << p.surface.nv << " pieces " << p.boundary.size());

@@ -48,5 +48,6 @@ Action addCompareCommand(CLI::App& app);
 Action addRasterizeCommand(CLI::App& app);
 Action addEditCommand(CLI::App& app);
 Action addSubdivideCommand(CLI::App& app);
+Action addPatchesCommand(CLI::App& app);
 
 } // namespace vdbsurf::cli

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
     add(&cli::addRasterizeCommand);
     add(&cli::addEditCommand);
     add(&cli::addSubdivideCommand);
+    add(&cli::addPatchesCommand);
 
     try {
         app.parse(argc, argv);

@@ -139,11 +139,15 @@ UnitPatch fitUnit(const ReebGraph& g, const PatchSet& set, const Unit& unit, Rin
 
 } // namespace
 
-PatchSet fitPatches(const ReebGraph& g, const PatchOptions& options) {
+std::vector<RingGrid> ringGrids(const ReebGraph& g, const PatchOptions& options) {
+    std::vector<RingGrid> grids(g.units.size());
+    tbb::parallel_for(std::size_t(0), grids.size(), [&](std::size_t u) { grids[u] = ringGrid(g, g.units[u], options.gridU, options.gridV); });
+    return grids;
+}
+
+PatchSet fitPatches(const ReebGraph& g, std::vector<RingGrid> grids) {
     PatchSet set;
     const std::size_t n = g.units.size();
-    std::vector<RingGrid> grids(n);
-    tbb::parallel_for(std::size_t(0), n, [&](std::size_t u) { grids[u] = ringGrid(g, g.units[u], options.gridU, options.gridV); });
     // Lobe curves with about one span per two grid points of the finer neighbouring unit.
     set.lobeCurves.resize(g.lobes.size());
     tbb::parallel_for(std::size_t(0), g.lobes.size(), [&](std::size_t li) {

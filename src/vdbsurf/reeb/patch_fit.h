@@ -37,7 +37,10 @@ struct PatchSet {
     std::size_t sectionsWithSeveralLoops = 0;
 };
 
-PatchSet fitPatches(const ReebGraph& graph, const PatchOptions& options = {});
+// One ring grid per unit (in unit order).
+std::vector<RingGrid> ringGrids(const ReebGraph& graph, const PatchOptions& options = {});
+// Patches over the units from their ring grids (consumed).
+PatchSet fitPatches(const ReebGraph& graph, std::vector<RingGrid> grids);
 
 // Largest distance between a patch's boundary row and the lobe curve it shares with the
 // neighbouring patch, over `samples` points per piece: zero up to rounding when the patches join.

@@ -1,0 +1,42 @@
+#include "vdbsurf/reeb/patch_pipeline.h"
+
+#include <chrono>
+
+namespace vdbsurf::reeb {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double lap(Clock::time_point& t) {
+    const Clock::time_point now = Clock::now();
+    const double s = std::chrono::duration<double>(now - t).count();
+    t = now;
+    return s;
+}
+} // namespace
+
+PatchResult makePatches(const Mesh& mesh, const std::string& inputName, const PatchJob& job) {
+    PatchResult r;
+    Clock::time_point t = Clock::now();
+    r.surface = buildClosedSurface(mesh, inputName);
+    r.seconds.surface = lap(t);
+    HeightFunction f = makeHeightFunction(r.surface, job.axis);
+    const SimplifyReport simplified = simplifyExtrema(r.surface, f, job.persistence * r.surface.meanEdgeLength());
+    r.seconds.height = lap(t);
+    r.graph = buildReebGraph(r.surface, f);
+    r.graph.simplified = simplified;
+    r.seconds.reeb = lap(t);
+    PatchOptions options;
+    options.gridU = job.gridU;
+    options.gridV = job.gridV;
+    std::vector<RingGrid> grids = ringGrids(r.graph, options);
+    r.seconds.grids = lap(t);
+    r.patches = fitPatches(r.graph, std::move(grids));
+    r.seconds.fit = lap(t);
+    r.preview = tessellatePatches(r.graph, r.patches, job.previewDensity);
+    r.seconds.tessellate = lap(t);
+    if (job.measureError) r.error = fitError(r.surface, r.preview);
+    r.seconds.error = lap(t);
+    return r;
+}
+
+} // namespace vdbsurf::reeb

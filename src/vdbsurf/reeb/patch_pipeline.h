@@ -1,0 +1,37 @@
+// The `vdbsurf patches` job as the command line and the benchmark run it: closed surface,
+// height function, Reeb graph and units, ring grids, patches, tessellation and fit error, each
+// stage timed. Holds no algorithm of its own.
+#pragma once
+#include "vdbsurf/reeb/patch_output.h"
+
+#include <string>
+
+namespace vdbsurf::reeb {
+
+struct PatchJob {
+    Vec3d axis{0, 0, 1};
+    // Extremum-saddle pairs less than this many mean edge lengths apart in height are noise
+    // and are removed before the graph is built (0 keeps every one).
+    double persistence = 0.5;
+    int gridU = 0, gridV = 0; // 0: from each unit
+    int previewDensity = 4;   // tessellation samples per knot span
+    bool measureError = true;
+};
+
+struct PatchTimings {
+    double surface = 0, height = 0, reeb = 0, grids = 0, fit = 0, tessellate = 0, error = 0;
+};
+
+struct PatchResult {
+    ClosedSurface surface;
+    ReebGraph graph;
+    PatchSet patches;
+    Mesh preview;
+    FitError error;
+    PatchTimings seconds;
+};
+
+// Throws Error naming inputName for input the Reeb graph cannot take (open, non-manifold ...).
+PatchResult makePatches(const Mesh& mesh, const std::string& inputName, const PatchJob& job);
+
+} // namespace vdbsurf::reeb
