@@ -4,10 +4,12 @@
 #include "support/test_support.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/density/scene_json.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/mesh/mesh_check.h"
-#include "vdbsurf/reeb/reeb_graph.h"
+#include "vdbsurf/mesh/mesh_io.h"
+#include "vdbsurf/reeb/patch_pipeline.h"
 
 #include <catch2/catch.hpp>
 
@@ -35,48 +37,205 @@ std::string torusFormula(double R, double r, const Vec3d& axis) {
     return "sqrt(pow(" + across + "-" + n(R) + ",2)+" + along + "*" + along + ")-" + n(r);
 }
 
-ReebGraph reebOf(const Mesh& mesh, const Vec3d& axis, double persistence) {
-    const ClosedSurface s = buildClosedSurface(mesh, "mesh");
-    HeightFunction f = makeHeightFunction(s, axis);
-    simplifyExtrema(s, f, persistence * s.meanEdgeLength());
-    return buildReebGraph(s, f);
+std::string capsuleFormula() { return "sqrt(x*x+y*y+pow(max(abs(z)-1,0),2))-0.5"; }
+// A tube around the lemniscate y^2 = x^2 (1 - x^2): genus 2.
+std::string doubleTorusFormula() { return "sqrt(pow(x*x*(1-x*x)-y*y,2)+z*z)-0.08"; }
+
+PatchResult patchesOf(const Mesh& mesh, const Vec3d& axis, double persistence = 0.5) {
+    PatchJob job;
+    job.axis = axis;
+    job.persistence = persistence;
+    return makePatches(mesh, "mesh", job);
 }
 
-void checkGraph(const ReebGraph& g, std::size_t nodes, std::size_t arcs, std::size_t loops) {
-    INFO("minima " << g.minima << " maxima " << g.maxima << " saddles " << g.saddles << " units " << g.units.size());
-    CHECK(g.nodes.size() == nodes);
+void checkGraph(const ReebGraph& g, std::size_t minima, std::size_t maxima, std::size_t saddles, std::size_t arcs, std::size_t loops) {
+    INFO("minima " << g.minima << " maxima " << g.maxima << " saddles " << g.saddles << " arcs " << g.units.size());
+    CHECK(g.minima == minima);
+    CHECK(g.maxima == maxima);
+    CHECK(g.saddles == saddles);
+    CHECK(g.nodes.size() == minima + maxima + saddles);
     CHECK(g.units.size() == arcs);
     CHECK(g.loops() == loops);
+    CHECK(long(g.minima) - long(g.saddles) + long(g.maxima) == g.eulerCharacteristic);
+    // Every arc climbs, and every node has the degree its type demands.
+    std::vector<int> down(g.nodes.size(), 0), up(g.nodes.size(), 0);
+    for (const Unit& u : g.units) {
+        CHECK(g.nodes[u.lower].rank < g.nodes[u.upper].rank);
+        ++up[u.lower];
+        ++down[u.upper];
+    }
+    for (std::size_t n = 0; n < g.nodes.size(); ++n) {
+        if (g.nodes[n].type == CriticalType::Minimum) CHECK((down[n] == 0 && up[n] == 1));
+        if (g.nodes[n].type == CriticalType::Maximum) CHECK((down[n] == 1 && up[n] == 0));
+        if (g.nodes[n].type == CriticalType::Saddle) CHECK(down[n] + up[n] == 2 + g.nodes[n].multiplicity);
+    }
+}
+
+// Units partition the surface; each is a disk (one end a pole), a cylinder, or the whole sphere.
+void checkUnits(const PatchResult& r, const Mesh& mesh) {
+    double sum = 0;
+    for (const Unit& u : r.graph.units) {
+        sum += u.area;
+        Mesh m;
+        for (const Vec3d& p : u.points) m.points.push_back(Vec3f(p));
+        m.offsets = u.offsets;
+        m.indices = u.indices;
+        const MeshTopology t = checkTopology(m);
+        CHECK(t.nonManifoldEdges == 0);
+        CHECK(t.inconsistentEdges == 0);
+        CHECK((t.boundaryEdges > 0) == !(u.bottomLobes.empty() && u.topLobes.empty()));
+    }
+    CHECK(sum == Approx(surfaceArea(mesh)).epsilon(1e-6));
+}
+
+// Rings close (the seam step is no longer than the grid's other steps), and every inner
+// section lies in its plane across the axis.
+void checkRings(const PatchResult& r) {
+    for (const UnitPatch& p : r.patches.patches) {
+        const RingGrid& grid = p.grid;
+        for (int v = 0; v < grid.V; ++v) {
+            double longest = 0;
+            for (int u = 0; u + 1 < grid.U; ++u) longest = std::max(longest, length(grid.at(u + 1, v) - grid.at(u, v)));
+            CHECK(length(grid.at(0, v) - grid.at(grid.U - 1, v)) <= longest * 1.01 + 1e-12);
+            if (v > 0 && v + 1 < grid.V && grid.sectionsBlended == 0)
+                for (int u = 0; u < grid.U; ++u) CHECK(dot(grid.at(u, v), r.graph.axis) == Approx(grid.heights[std::size_t(v)]).margin(1e-9));
+        }
+    }
+}
+
+void checkJoins(const PatchResult& r) {
+    const double diagonal = length(r.preview.bounds().extent());
+    CHECK(maxJoinGap(r.patches) < 1e-6 * diagonal);
+    // The tessellation shares vertices along the joins: it is closed where the input is.
+    const MeshTopology t = checkTopology(r.preview);
+    INFO("boundary " << t.boundaryEdges << " non-manifold " << t.nonManifoldEdges << " inconsistent " << t.inconsistentEdges);
+    CHECK(t.closedManifoldOriented());
+    CHECK(countComponents(r.preview) == r.graph.components);
 }
 
 } // namespace
 
 TEST_CASE("Reeb graph of a sphere: a minimum, a maximum and one arc", "[reeb]") {
-    const Mesh m = dmcMesh("sqrt(x*x+y*y+z*z)-1", 1.3, 0.1);
-    const ReebGraph g = reebOf(m, Vec3d(0, 0, 1), 0.5);
-    checkGraph(g, 2, 1, 0);
+    const Mesh m = dmcMesh("sqrt(x*x+y*y+z*z)-1", 1.3, 0.08);
+    const PatchResult r = patchesOf(m, Vec3d(0, 0, 1));
+    checkGraph(r.graph, 1, 1, 0, 1, 0);
+    CHECK(r.graph.nodes.front().height == Approx(-1).margin(0.01));
+    CHECK(r.graph.nodes.back().height == Approx(1).margin(0.01));
+    checkUnits(r, m);
+    checkRings(r);
+    checkJoins(r);
 }
 
 TEST_CASE("Reeb graph of an upright torus: 4 nodes, 4 arcs, one loop", "[reeb]") {
     const Mesh m = dmcMesh(torusFormula(1.0, 0.35, Vec3d(0, 1, 0)), 1.5, 0.06);
-    const ReebGraph g = reebOf(m, Vec3d(0, 0, 1), 0.5);
-    checkGraph(g, 4, 4, 1);
+    const PatchResult r = patchesOf(m, Vec3d(0, 0, 1));
+    checkGraph(r.graph, 1, 1, 2, 4, 1);
+    // The saddles sit on the inner rim, at z = -+(R - r).
+    const std::vector<ReebNode>& n = r.graph.nodes;
+    CHECK(n[1].type == CriticalType::Saddle);
+    CHECK(n[1].height == Approx(-0.65).margin(0.03));
+    CHECK(n[2].height == Approx(0.65).margin(0.03));
+    checkUnits(r, m);
+    checkRings(r);
+    checkJoins(r);
 }
 
-#include "vdbsurf/reeb/patch_fit.h"
-
-TEST_CASE("Patches of a torus join without gaps", "[reeb][patches]") {
-    const Mesh m = dmcMesh(torusFormula(1.0, 0.35, Vec3d(0, 1, 0.3)), 1.5, 0.06);
-    const ReebGraph g = reebOf(m, Vec3d(0, 0, 1), 0.5);
-    const PatchSet set = fitPatches(g, ringGrids(g));
-    CHECK(maxJoinGap(set) < 1e-9);
-    for (const UnitPatch& p : set.patches) {
-        INFO("U " << p.grid.U << " V " << p.grid.V << " nu " << p.surface.nu << " nv " << p.surface.nv << " pieces " << p.boundary.size());
-        CHECK(p.grid.points.size() == std::size_t(p.grid.U * p.grid.V));
-        double err = 0;
-        for (int v = 0; v < p.grid.V; ++v)
-            for (int u = 0; u < p.grid.U; ++u)
-                err = std::max(err, length(p.surface.eval(double(u) / p.grid.U, double(v) / (p.grid.V - 1)) - p.grid.at(u, v)));
-        CHECK(err < 0.05);
+TEST_CASE("Reeb graph of a tilted torus, along a tilted axis too", "[reeb]") {
+    const Mesh m = dmcMesh(torusFormula(1.0, 0.35, Vec3d(0.3, 0.5, 0.81)), 1.6, 0.06);
+    for (const Vec3d& axis : {Vec3d(0, 0, 1), Vec3d(0.2, -0.9, 0.4)}) {
+        const PatchResult r = patchesOf(m, axis);
+        checkGraph(r.graph, 1, 1, 2, 4, 1);
+        checkUnits(r, m);
+        checkJoins(r);
     }
+}
+
+TEST_CASE("Reeb graph of a double torus: 6 nodes, 7 arcs, two loops", "[reeb]") {
+    const Mesh m = dmcMesh(doubleTorusFormula(), 1.3, 0.025);
+    const PatchResult r = patchesOf(m, Vec3d(1, 0.3, 0.2));
+    checkGraph(r.graph, 1, 1, 4, 7, 2);
+    checkUnits(r, m);
+    checkRings(r);
+    checkJoins(r);
+}
+
+TEST_CASE("Plateaus of equal height: a box meshed with sharp features", "[reeb]") {
+    // DMC puts the faces of the box exactly on their planes: its top and bottom are plateaus.
+    const Mesh m = dmcMesh("max(abs(x),abs(y),abs(z))-1", 1.3, 0.1);
+    const PatchResult r = patchesOf(m, Vec3d(0, 0, 1));
+    checkGraph(r.graph, 1, 1, 0, 1, 0);
+    checkUnits(r, m);
+    checkJoins(r);
+    // An exact plateau (the cube's faces, all corners at equal heights): ties broken linearly
+    // leave no critical point inside a face, even without simplification.
+    const Mesh cube = test::cubeMesh();
+    const PatchResult c = patchesOf(cube, Vec3d(0, 0, 1), 0.0);
+    checkGraph(c.graph, 1, 1, 0, 1, 0);
+}
+
+TEST_CASE("Simplification removes only low-persistence extrema", "[reeb]") {
+    // Two overlapping balls of different sizes: two minima, two maxima and two saddles are the
+    // shape's own, far above the persistence; whatever the mesh adds below it goes.
+    const Mesh m = dmcMesh("min(sqrt(x*x+y*y+z*z)-1,sqrt(pow(x-1.2,2)+y*y+pow(z-0.3,2))-0.6)", 1.9, 0.05);
+    const PatchResult r = patchesOf(m, Vec3d(0, 0, 1));
+    checkGraph(r.graph, 2, 2, 2, 5, 0);
+    CHECK(r.graph.nodes.back().height == Approx(1).margin(0.01));
+    checkUnits(r, m);
+    checkJoins(r);
+    const PatchResult raw = patchesOf(m, Vec3d(0, 0, 1), 0.0);
+    CHECK(raw.graph.nodes.size() >= r.graph.nodes.size());
+    CHECK(long(raw.graph.minima) - long(raw.graph.saddles) + long(raw.graph.maxima) == 2);
+}
+
+TEST_CASE("Patches fit smooth shapes to a fraction of an edge", "[reeb][patches]") {
+    struct Shape {
+        std::string name, formula;
+        double extent, h;
+        Vec3d axis;
+    };
+    const std::vector<Shape> shapes{{"sphere", "sqrt(x*x+y*y+z*z)-1", 1.3, 0.06, {0, 0, 1}},
+                                    {"torus", torusFormula(1.0, 0.35, Vec3d(0, 1, 0)), 1.5, 0.05, {0, 0, 1}},
+                                    {"capsule", capsuleFormula(), 1.7, 0.06, {0, 0, 1}}};
+    for (const Shape& s : shapes) {
+        const Mesh m = dmcMesh(s.formula, s.extent, s.h);
+        const PatchResult r = patchesOf(m, s.axis);
+        INFO(s.name << ": RMS " << r.error.rms << " max " << r.error.max << " mean edges");
+        CHECK(r.error.rms < 0.1);
+        CHECK(r.error.max < 0.5);
+        checkJoins(r);
+    }
+}
+
+TEST_CASE("Patches of a blobby scene", "[reeb][patches]") {
+    const std::string scene = std::string(VDBSURF_SOURCE_DIR) + "/examples/scenes/blobby.json";
+    const DensityScene field = readSceneFile(scene);
+    MeshRequest req;
+    req.voxelSize = 0.05;
+    MeshReport rep;
+    const Mesh m = meshField(field, req, rep);
+    const PatchResult r = patchesOf(m, Vec3d(0, 0, 1));
+    INFO("RMS " << r.error.rms << " max " << r.error.max << " nodes " << r.graph.nodes.size());
+    CHECK(long(r.graph.minima) - long(r.graph.saddles) + long(r.graph.maxima) == r.graph.eulerCharacteristic);
+    // The blend between the primitives curves more sharply than the spheres and tori above.
+    CHECK(r.error.rms < 0.15);
+    CHECK(r.error.max < 1.0);
+    checkUnits(r, m);
+    checkJoins(r);
+}
+
+TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]") {
+    CHECK_THROWS_WITH(buildClosedSurface(test::openCubeMesh(), "open.obj"), Catch::Contains("open.obj") && Catch::Contains("open"));
+    Mesh bowtie = test::octahedronMesh();
+    // A second octahedron touching the first at one vertex: a non-manifold vertex.
+    Mesh two = bowtie;
+    const Vec3f top = bowtie.points[0];
+    for (Vec3f p : bowtie.points) two.points.push_back(Vec3f(p.x, p.y, p.z) + (top - bowtie.points[1]) * 1.0f);
+    const std::uint32_t n = std::uint32_t(bowtie.points.size());
+    for (std::size_t f = 0; f < bowtie.polygonCount(); ++f) {
+        std::vector<std::uint32_t> vs(bowtie.polygon(f), bowtie.polygon(f) + bowtie.polygonSize(f));
+        for (std::uint32_t& v : vs) v = v == 1 ? 0 : v + n; // its vertex 1 lands on the first one's vertex 0
+        two.addPolygon(vs.data(), vs.size());
+    }
+    CHECK_THROWS_WITH(buildClosedSurface(two, "two.obj"), Catch::Contains("two.obj") && Catch::Contains("non-manifold vertex"));
+    CHECK_THROWS_WITH(makeHeightFunction(buildClosedSurface(bowtie, "o.obj"), Vec3d(0, 0, 0)), Catch::Contains("--axis"));
 }

@@ -85,6 +85,9 @@ void runPatches(const PatchesOptions& o) {
     if (r.patches.sectionsWithSeveralLoops)
         note(std::to_string(r.patches.sectionsWithSeveralLoops) + " ring-grid sections met more than one contour loop in a unit " +
              "(noise below the persistence); the longest was used");
+    if (r.patches.sectionsBlended)
+        note(std::to_string(r.patches.sectionsBlended) + " ring-grid sections found no contour (flat or re-ordered parts of a unit) " +
+             "and were blended from the sections beside them");
     if (!o.stats.empty()) {
         const reeb::PatchTimings& t = r.seconds;
         nlohmann::json units = nlohmann::json::array();

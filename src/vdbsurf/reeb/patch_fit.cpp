@@ -24,7 +24,8 @@ BSplineCurve endCurve(const ReebGraph& g, const PatchSet& set, const std::vector
     std::size_t k = 0;
     double at = seam * total, before = 0;
     while (k + 1 < lobes.size() && before + lengths[k] <= at) before += lengths[k++];
-    const double tau = lengths[k] > 0 ? std::clamp((at - before) / lengths[k], 0.0, 1.0) : 0.0;
+    double tau = lengths[k] > 0 ? std::clamp((at - before) / lengths[k], 0.0, 1.0) : 0.0;
+    if (tau < 1e-6 || tau > 1 - 1e-6) tau = tau < 0.5 ? 0.0 : 1.0; // no sliver of a lobe at the seam
     std::vector<BoundaryPiece> stretch;
     auto add = [&](std::size_t i, double t0, double t1) {
         if (t1 > t0) stretch.push_back({lobes[i], t0, t1, 0, 0, top});
@@ -32,13 +33,21 @@ BSplineCurve endCurve(const ReebGraph& g, const PatchSet& set, const std::vector
     add(k, tau, 1.0);
     for (std::size_t j = 1; j < lobes.size(); ++j) add((k + j) % lobes.size(), 0.0, 1.0);
     add(k, 0.0, tau);
+    // Each stretch gets a share of u by its length, but never a vanishing one (a lobe of a
+    // degenerate contour can have no length), so its knots stay apart.
+    std::vector<double> share;
+    double shares = 0;
+    for (const BoundaryPiece& p : stretch) {
+        const std::size_t idx = std::size_t(std::find(lobes.begin(), lobes.end(), p.lobe) - lobes.begin());
+        share.push_back(std::max((p.t1 - p.t0) * lengths[idx] / std::max(total, 1e-300), 1e-3 / double(stretch.size())));
+        shares += share.back();
+    }
     std::vector<BSplineCurve> curves;
     double u = 0;
     for (std::size_t i = 0; i < stretch.size(); ++i) {
         BoundaryPiece& p = stretch[i];
-        const std::size_t idx = std::size_t(std::find(lobes.begin(), lobes.end(), p.lobe) - lobes.begin());
         p.u0 = u;
-        p.u1 = i + 1 == stretch.size() ? 1.0 : u + (p.t1 - p.t0) * lengths[idx] / total;
+        p.u1 = i + 1 == stretch.size() ? 1.0 : u + share[i] / shares;
         u = p.u1;
         curves.push_back(reparameterized(subCurve(set.lobeCurves[p.lobe], p.t0, p.t1), p.u0, p.u1));
         pieces.push_back(p);
@@ -170,7 +179,10 @@ PatchSet fitPatches(const ReebGraph& g, std::vector<RingGrid> grids) {
     });
     set.patches.resize(n);
     tbb::parallel_for(std::size_t(0), n, [&](std::size_t u) { set.patches[u] = fitUnit(g, set, g.units[u], std::move(grids[u])); });
-    for (const UnitPatch& p : set.patches) set.sectionsWithSeveralLoops += p.grid.sectionsWithSeveralLoops;
+    for (const UnitPatch& p : set.patches) {
+        set.sectionsWithSeveralLoops += p.grid.sectionsWithSeveralLoops;
+        set.sectionsBlended += p.grid.sectionsBlended;
+    }
     return set;
 }
 

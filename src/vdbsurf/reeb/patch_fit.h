@@ -34,7 +34,7 @@ struct PatchOptions {
 struct PatchSet {
     std::vector<BSplineCurve> lobeCurves; // lobe parameter in [0, 1], from the saddle back to it
     std::vector<UnitPatch> patches;       // one per unit (arc)
-    std::size_t sectionsWithSeveralLoops = 0;
+    std::size_t sectionsWithSeveralLoops = 0, sectionsBlended = 0;
 };
 
 // One ring grid per unit (in unit order).

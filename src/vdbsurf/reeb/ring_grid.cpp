@@ -181,11 +181,14 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
     const Sectioner sectioner(unit, g.axis);
     const double h0 = bottom.height, h1 = top.height;
     std::size_t several = 0;
+    // A section can find no contour where the unit is flat (a plateau) or where simplification
+    // re-ordered vertices against their heights; such rows are blended from their neighbours.
+    std::size_t missing = 0;
     auto section = [&](double t) {
         std::size_t loops = 0;
         std::vector<Vec3d> loop = sectioner.longestLoop(t, loops);
         several += loops > 1;
-        if (loop.empty()) throw std::logic_error("ring grid: a unit has no contour at a height inside it");
+        missing += loop.empty();
         return loop;
     };
     if (U <= 0 || V <= 0) {
@@ -193,10 +196,12 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
         double girth = 0;
         int n = 0;
         for (int i = 1; i < 8; ++i) {
-            girth += loopLength(section(h0 + (h1 - h0) * i / 8.0));
+            const std::vector<Vec3d> loop = section(h0 + (h1 - h0) * i / 8.0);
+            if (loop.empty()) continue;
+            girth += loopLength(loop);
             ++n;
         }
-        girth /= n;
+        girth = n ? girth / n : std::sqrt(unit.area);
         const double spacing = std::sqrt(unit.area / std::max(1.0, double(unit.inputVertices) / 4.0));
         if (U <= 0) U = std::clamp(int(std::lround(girth / spacing)), 8, 128);
         if (V <= 0) V = std::clamp(int(std::lround(unit.area / std::max(girth, 1e-30) / spacing)) + 1, 4, 128);
@@ -204,53 +209,71 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
     RingGrid grid;
     grid.U = U;
     grid.V = V;
-    grid.heights.resize(std::size_t(V));
+    grid.heights.resize(static_cast<std::size_t>(V));
     for (int v = 0; v < V; ++v) grid.heights[std::size_t(v)] = h0 + (h1 - h0) * v / double(V - 1);
     std::vector<std::vector<Vec3d>> rows{std::size_t(V)};
     // Sections at the current heights; the seam is carried outwards from an end with a saddle
     // (where u = 0 is the saddle), else from the middle section's extreme point across the axis.
     auto build = [&]() {
         std::vector<std::vector<Vec3d>> loopsAt{std::size_t(V)};
-        for (int v = 0; v < V; ++v) {
-            if (v == 0 && !bottom.pole) loopsAt[0] = bottom.loop;
-            else if (v == V - 1 && !top.pole) loopsAt[std::size_t(v)] = top.loop;
-            else if ((v == 0 && bottom.pole) || (v == V - 1 && top.pole)) continue;
-            else loopsAt[std::size_t(v)] = section(grid.heights[std::size_t(v)]);
-        }
-        int anchor;
+        for (std::vector<Vec3d>& r : rows) r.clear();
+        if (bottom.pole) rows[0].assign(std::size_t(U), bottom.point);
+        else loopsAt[0] = bottom.loop;
+        if (top.pole) rows[std::size_t(V - 1)].assign(std::size_t(U), top.point);
+        else loopsAt[std::size_t(V - 1)] = top.loop;
+        for (int v = 1; v + 1 < V; ++v) loopsAt[std::size_t(v)] = section(grid.heights[std::size_t(v)]);
+        int anchor = -1;
         double anchorOffset = 0;
         if (!bottom.pole) anchor = 0;
         else if (!top.pole) anchor = V - 1;
         else {
-            anchor = V / 2;
-            const std::vector<Vec3d>& loop = loopsAt[std::size_t(anchor)];
-            Vec3d across = normalized(Vec3d(0.5257311, 0.3313243, 0.7837181) - g.axis * dot(Vec3d(0.5257311, 0.3313243, 0.7837181), g.axis));
-            const std::vector<Vec3d> fine = resampleLoop(loop, 4 * U, 0.0);
-            std::size_t best = 0;
-            for (std::size_t i = 1; i < fine.size(); ++i)
-                if (dot(fine[i], across) > dot(fine[best], across)) best = i;
-            anchorOffset = double(best) / double(fine.size());
-        }
-        rows[std::size_t(anchor)] = resampleLoop(loopsAt[std::size_t(anchor)], U, anchorOffset);
-        grid.bottomSeam = anchor == 0 ? anchorOffset : 0.0;
-        grid.topSeam = anchor == V - 1 ? anchorOffset : 0.0;
-        for (int dir : {-1, 1})
-            for (int v = anchor + dir; v >= 0 && v < V; v += dir) {
-                const std::vector<Vec3d>& loop = loopsAt[std::size_t(v)];
-                if (loop.empty()) { // a pole
-                    rows[std::size_t(v)].assign(std::size_t(U), v == 0 ? bottom.point : top.point);
-                    continue;
-                }
-                const double offset = bestOffset(loop, rows[std::size_t(v - dir)]);
-                rows[std::size_t(v)] = resampleLoop(loop, U, offset);
-                if (v == 0) grid.bottomSeam = offset;
-                if (v == V - 1) grid.topSeam = offset;
+            for (int d = 0; d < V && anchor < 0; ++d)
+                for (int v : {V / 2 - d, V / 2 + d})
+                    if (anchor < 0 && v > 0 && v + 1 < V && !loopsAt[std::size_t(v)].empty()) anchor = v;
+            if (anchor >= 0) {
+                const Vec3d generic(0.5257311, 0.3313243, 0.7837181);
+                const Vec3d across = normalized(generic - g.axis * dot(generic, g.axis));
+                const std::vector<Vec3d> fine = resampleLoop(loopsAt[std::size_t(anchor)], 4 * U, 0.0);
+                std::size_t best = 0;
+                for (std::size_t i = 1; i < fine.size(); ++i)
+                    if (dot(fine[i], across) > dot(fine[best], across)) best = i;
+                anchorOffset = double(best) / double(fine.size());
             }
+        }
+        grid.bottomSeam = grid.topSeam = 0.0;
+        if (anchor >= 0) {
+            rows[std::size_t(anchor)] = resampleLoop(loopsAt[std::size_t(anchor)], U, anchorOffset);
+            if (anchor == 0) grid.bottomSeam = anchorOffset;
+            if (anchor == V - 1) grid.topSeam = anchorOffset;
+            for (int dir : {-1, 1}) {
+                int ref = anchor;
+                for (int v = anchor + dir; v >= 0 && v < V; v += dir) {
+                    const std::vector<Vec3d>& loop = loopsAt[std::size_t(v)];
+                    if (loop.empty()) continue; // a pole (already set) or a missing section
+                    const double offset = bestOffset(loop, rows[std::size_t(ref)]);
+                    rows[std::size_t(v)] = resampleLoop(loop, U, offset);
+                    if (v == 0) grid.bottomSeam = offset;
+                    if (v == V - 1) grid.topSeam = offset;
+                    ref = v;
+                }
+            }
+        }
+        for (int v = 1; v + 1 < V; ++v) {
+            if (!rows[std::size_t(v)].empty()) continue;
+            int lo = v - 1, hi = v + 1;
+            while (rows[std::size_t(hi)].empty()) ++hi;
+            const double span = grid.heights[std::size_t(hi)] - grid.heights[std::size_t(lo)];
+            const double w = span > 0 ? (grid.heights[std::size_t(v)] - grid.heights[std::size_t(lo)]) / span : double(v - lo) / (hi - lo);
+            rows[std::size_t(v)].resize(std::size_t(U));
+            for (int u = 0; u < U; ++u)
+                rows[std::size_t(v)][std::size_t(u)] = rows[std::size_t(lo)][std::size_t(u)] * (1 - w) + rows[std::size_t(hi)][std::size_t(u)] * w;
+        }
     };
     // Even out the spacing of the sections along the surface: heights re-spaced by the mean
     // distance between consecutive rows, a few times.
     for (int iteration = 0; iteration < 4; ++iteration) {
         several = 0;
+        missing = 0;
         build();
         if (iteration == 3 || V < 3) break;
         std::vector<double> along(std::size_t(V), 0.0);
@@ -276,6 +299,7 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
         grid.heights = heights;
     }
     grid.sectionsWithSeveralLoops = several;
+    grid.sectionsBlended = missing;
     grid.points.reserve(std::size_t(U) * std::size_t(V));
     for (int v = 0; v < V; ++v) grid.points.insert(grid.points.end(), rows[std::size_t(v)].begin(), rows[std::size_t(v)].end());
     return grid;

@@ -28,6 +28,7 @@ struct RingGrid {
     // Where u = 0 sits on each end's contour, as a fraction of its length from the contour's start.
     double bottomSeam = 0, topSeam = 0;
     std::size_t sectionsWithSeveralLoops = 0; // noise: the longest loop was used
+    std::size_t sectionsBlended = 0;          // no contour (a flat unit): blended from the rows beside
     const Vec3d& at(int u, int v) const { return points[std::size_t(v) * std::size_t(U) + std::size_t(u)]; }
 };
 
