@@ -3,7 +3,9 @@
 #include "support/test_support.h"
 
 #include "support/shapes.h"
+#include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_io.h"
+#include "vdbsurf/reeb/bspline.h"
 #include "vdbsurf/vdb/vdb_file.h"
 
 #include <catch2/catch.hpp>
@@ -13,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 
 using namespace vdbsurf;
 using test::runVdbsurf;
@@ -400,4 +403,103 @@ TEST_CASE("subdivide writes a POV-Ray scene that povray renders as the camera se
     CHECK(object < std::size_t(img.width * img.height / 2));
     CHECK(sx / double(object) > img.width / 2.0);  // right of centre
     CHECK(sy / double(object) < img.height / 2.0); // above centre (image rows grow downwards)
+}
+
+namespace {
+
+// The OBJ free-form surfaces of a patches file, read back on their own terms.
+std::vector<reeb::BSplinePatch> readFreeFormObj(const std::string& path) {
+    std::ifstream in(path);
+    std::vector<Vec3d> v;
+    std::vector<reeb::BSplinePatch> patches;
+    std::vector<std::size_t> refs;
+    std::string line;
+    while (std::getline(in, line)) {
+        std::istringstream s(line);
+        std::string key;
+        s >> key;
+        if (key == "v") {
+            Vec3d p;
+            s >> p.x >> p.y >> p.z;
+            v.push_back(p);
+        } else if (key == "deg") {
+            int du = 0, dv = 0;
+            s >> du >> dv;
+            CHECK((du == 3 && dv == 3));
+        } else if (key == "surf") {
+            double range[4];
+            s >> range[0] >> range[1] >> range[2] >> range[3];
+            refs.clear();
+            for (std::size_t i; s >> i;) refs.push_back(i);
+            patches.emplace_back();
+        } else if (key == "parm") {
+            std::string dir;
+            s >> dir;
+            std::vector<double>& knots = dir == "u" ? patches.back().knotsU : patches.back().knotsV;
+            for (double k; s >> k;) knots.push_back(k);
+        } else if (key == "end") {
+            reeb::BSplinePatch& p = patches.back();
+            p.nu = int(p.knotsU.size()) - 4;
+            p.nv = int(p.knotsV.size()) - 4;
+            REQUIRE(refs.size() == std::size_t(p.nu * p.nv));
+            for (std::size_t i : refs) p.ctrl.push_back(v.at(i - 1));
+        }
+    }
+    return patches;
+}
+
+} // namespace
+
+TEST_CASE("patches: B-spline patches, Reeb graph JSON and preview from a DMC mesh, the same at any thread count") {
+    test::TempDir dir;
+    auto r = runVdbsurf({"mesh", "--expr", "sqrt(pow(sqrt(x*x+z*z)-1,2)+y*y)-0.35", "--bbox", "-1.5,-1.5,-1.5,1.5,1.5,1.5", "--voxel-size",
+                         "0.06", "-o", dir.path("torus.obj"), "-q"});
+    REQUIRE(r.exitCode == 0);
+    for (const std::string threads : {"1", "2"}) {
+        r = runVdbsurf({"patches", dir.path("torus.obj"), "-o", dir.path("p" + threads + ".obj"), "--reeb", dir.path("r" + threads + ".json"),
+                        "--preview", dir.path("prev" + threads + ".obj"), "--stats", dir.path("s.json"), "--threads", threads});
+        INFO(r.output);
+        REQUIRE(r.exitCode == 0);
+        CHECK(r.output.find("4 nodes, 4 arcs, 1 loops") != std::string::npos);
+    }
+    for (const std::string name : {"p", "r", "prev"}) {
+        const std::string ext = name == "r" ? ".json" : ".obj";
+        CHECK(test::readFile(dir.path(name + "1" + ext)) == test::readFile(dir.path(name + "2" + ext)));
+    }
+    const Mesh input = readMesh(dir.path("torus.obj"));
+    const auto reebJson = nlohmann::json::parse(test::readFile(dir.path("r1.json")));
+    CHECK(reebJson["nodes"].size() == 4);
+    CHECK(reebJson["arcs"].size() == 4);
+    CHECK(reebJson["nodes"][0]["type"] == "minimum");
+    CHECK(reebJson["nodes"][3]["type"] == "maximum");
+    std::vector<char> covered(input.polygonCount(), 0);
+    for (const auto& arc : reebJson["arcs"])
+        for (std::size_t f : arc["faces"].get<std::vector<std::size_t>>()) covered.at(f) = 1;
+    CHECK(std::count(covered.begin(), covered.end(), 1) == std::ptrdiff_t(input.polygonCount()));
+    const auto stats = nlohmann::json::parse(test::readFile(dir.path("s.json")));
+    CHECK(stats["fit_error_rms"].get<double>() < 0.1);
+
+    // The free-form surfaces as a reader sees them lie on the torus.
+    const std::vector<reeb::BSplinePatch> patches = readFreeFormObj(dir.path("p1.obj"));
+    REQUIRE(patches.size() == 4);
+    const double meanEdge = stats["mean_edge_length"].get<double>();
+    for (const reeb::BSplinePatch& p : patches)
+        for (int i = 0; i <= 10; ++i)
+            for (int j = 0; j <= 10; ++j) {
+                const Vec3d q = p.eval(i / 10.0, j / 10.0);
+                const double torus = std::sqrt(std::pow(std::sqrt(q.x * q.x + q.z * q.z) - 1, 2) + q.y * q.y) - 0.35;
+                CHECK(std::abs(torus) < meanEdge);
+            }
+    const Mesh preview = readMesh(dir.path("prev1.obj"));
+    CHECK(checkTopology(preview).closedManifoldOriented());
+
+    const std::vector<std::string> before = dir.files();
+    writeMesh(dir.path("open.obj"), test::openCubeMesh());
+    const std::vector<std::string> withOpen = dir.files();
+    expectFailure(dir, {"patches", dir.path("open.obj"), "-o", dir.path("x.obj")}, "open.obj", "open", withOpen);
+    expectFailure(dir, {"patches", dir.path("torus.obj"), "-o", dir.path("x.ply")}, "x.ply", "use .obj", withOpen);
+    expectFailure(dir, {"patches", dir.path("torus.obj"), "-o", dir.path("x.obj"), "--axis", "0,0,0"}, "--axis", "non-zero", withOpen);
+    expectFailure(dir, {"patches", dir.path("torus.obj"), "-o", dir.path("x.obj"), "--grid-size", "2,x"}, "--grid-size", "", withOpen);
+    expectFailure(dir, {"patches", dir.path("torus.obj"), "-o", dir.path("x.obj"), "--grid-size", "2,2"}, "--grid-size", "U from 4",
+                  withOpen);
 }
