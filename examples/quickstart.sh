@@ -42,6 +42,15 @@ if command -v povray > /dev/null; then
     echo "rendered $out/blobby_view.png with POV-Ray"
 fi
 
+echo "== 8. B-spline patches of the scene, laid out by its Reeb graph along y (up) (OBJ free-form surfaces)"
+"$vdbsurf" -q mesh "$here/scenes/blobby.json" -o "$out/blobby_h05.obj" --voxel-size 0.05
+"$vdbsurf" patches "$out/blobby_h05.obj" -o "$out/blobby_patches.obj" --reeb "$out/blobby_reeb.json" \
+  --preview "$out/blobby_patches.pov" --axis y
+if command -v povray > /dev/null; then
+  (cd "$out" && povray +Iblobby_patches.pov +Oblobby_patches.png +W640 +H480 +A0.3 -D -V > /dev/null 2>&1) &&
+    echo "rendered $out/blobby_patches.png with POV-Ray"
+fi
+
 echo
 echo "results are in $out:"
 ls -l "$out" | awk 'NR > 1 {print "  " $NF "  (" $5 " bytes)"}'

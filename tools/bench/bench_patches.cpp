@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
     {
         // Upright torus (R 1, r 0.35, around y; height z): area 13.8, so spacing h gives about
         // 2 * 13.8 / h^2 triangles.
-        const double h = quick ? 0.0166 : 0.00525;
+        const double h = quick ? 0.0166 : 0.0063;
         ExpressionField torus("sqrt(pow(sqrt(x*x+z*z)-1,2)+y*y)-0.35", Box3{Vec3d(-1.5, -1.5, -1.5), Vec3d(1.5, 1.5, 1.5)});
         MeshRequest req;
         req.voxelSize = h;
