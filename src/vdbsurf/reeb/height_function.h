@@ -35,8 +35,9 @@ struct SimplifyReport {
 // are; only the order (rank) changes, so the cut follows the geometry to within `persistence`.
 SimplifyReport simplifyExtrema(const ClosedSurface& surface, HeightFunction& f, double persistence);
 
-// Whether the interpolation point of level `key` (a vertex rank) on the edge a-b lies at
-// parameter t from a: heights first, then the two tie-break directions, clamped to [0, 1].
+// Where the level of vertex `levelVertex` crosses the edge a-b, as a parameter from a (0) to b
+// (1): by heights, or where they tie by the two tie-break directions; clamped to [0, 1], since
+// simplification can order a vertex against its height.
 double levelParameter(const HeightFunction& f, std::uint32_t levelVertex, std::uint32_t a, std::uint32_t b);
 
 } // namespace vdbsurf::reeb

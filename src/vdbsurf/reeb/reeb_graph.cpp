@@ -76,7 +76,6 @@ namespace {
 
 struct Crossing {
     std::uint32_t edge, level; // level: rank of the saddle
-    std::uint32_t lobe;
     Vec3d position;
 };
 
@@ -109,7 +108,7 @@ ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
     // contour runs from where the boundary (in corner order) climbs through the level to where it
     // falls through it; at the saddle s, a triangle (s, a, b) with a above and b below starts one.
     std::vector<Crossing> crossings;
-    std::vector<std::uint32_t> lobeStartTriangle;
+    std::vector<std::uint32_t> lobeStartTriangle, lobeFirstCrossing;
     for (std::uint32_t ni = 0; ni < g.nodes.size(); ++ni) {
         if (g.nodes[ni].type != CriticalType::Saddle) continue;
         const std::uint32_t sv = g.nodes[ni].vertex, level = g.nodes[ni].rank;
@@ -121,14 +120,14 @@ ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
                 Lobe lobe;
                 lobe.node = ni;
                 lobe.points.push_back(s.points[sv]);
-                const std::uint32_t lobeIndex = std::uint32_t(g.lobes.size());
                 std::uint32_t cc = ClosedSurface::next(c); // a -> b, falling through the level
+                lobeFirstCrossing.push_back(std::uint32_t(crossings.size()));
                 for (std::size_t steps = 0;; ++steps) {
                     if (steps > s.vertex.size()) throw std::logic_error("reeb: a critical contour does not close");
                     const std::uint32_t va = s.vertex[cc], vb = s.vertex[ClosedSurface::next(cc)];
                     const double t = levelParameter(f, sv, va, vb);
                     const Vec3d p = s.points[va] + (s.points[vb] - s.points[va]) * t;
-                    crossings.push_back({s.edgeOf[cc], level, lobeIndex, p});
+                    crossings.push_back({s.edgeOf[cc], level, p});
                     lobe.points.push_back(p);
                     const std::uint32_t o = s.opposite[cc]; // vb -> va: climbing in the next triangle
                     const std::uint32_t d = s.vertex[ClosedSurface::prev(o)];
@@ -270,9 +269,7 @@ ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
     for (std::uint32_t li = 0; li < g.lobes.size(); ++li) {
         Lobe& lobe = g.lobes[li];
         const std::uint32_t sv = g.nodes[lobe.node].vertex, level = g.nodes[lobe.node].rank;
-        std::uint32_t x1 = ~0u;
-        for (std::uint32_t i = 0; i < crossings.size() && x1 == ~0u; ++i)
-            if (crossings[i].lobe == li) x1 = crossingId[i];
+        const std::uint32_t x1 = crossingId[lobeFirstCrossing[li]];
         const std::uint32_t t = lobeStartTriangle[li];
         for (std::uint32_t p = trianglePieces[t]; p < trianglePieces[t + 1]; ++p) {
             const auto b = pieces.indices.begin() + pieces.offsets[p], e = pieces.indices.begin() + pieces.offsets[p + 1];
