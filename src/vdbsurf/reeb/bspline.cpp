@@ -1,6 +1,6 @@
 #include "vdbsurf/reeb/bspline.h"
 
-#include <Eigen/Dense>
+#include "vdbsurf/reeb/least_squares.h"
 
 #include <algorithm>
 #include <stdexcept>
@@ -152,61 +152,48 @@ BSplineCurve joined(const std::vector<BSplineCurve>& curves) {
     return out;
 }
 
+Eigen::MatrixXd basisMatrix(const std::vector<double>& knots, int n, const std::vector<double>& params) {
+    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(Eigen::Index(params.size()), n);
+    for (std::size_t s = 0; s < params.size(); ++s) {
+        const int k = findSpan(knots, n, params[s]);
+        double N[4];
+        basisFunctions(knots, k, params[s], N);
+        for (int i = 0; i < 4; ++i) B(Eigen::Index(s), k - 3 + i) += N[i];
+    }
+    return B;
+}
+
+Eigen::MatrixXd penalizedLeastSquares(const Eigen::MatrixXd& B, const Eigen::MatrixXd& R, bool cyclic) {
+    const Eigen::Index n = B.cols();
+    Eigen::MatrixXd A = B.transpose() * B;
+    const double scale = std::max(1e-12, A.diagonal().mean());
+    const Eigen::Index rows = cyclic ? n : n - 2;
+    for (Eigen::Index r = 0; r < rows; ++r) {
+        const Eigen::Index idx[3] = {r, (r + 1) % n, (r + 2) % n};
+        const double w[3] = {1, -2, 1};
+        for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) A(idx[a], idx[b]) += 1e-4 * scale * w[a] * w[b];
+    }
+    A.diagonal().array() += 1e-9 * scale;
+    return A.ldlt().solve(B.transpose() * R);
+}
+
 BSplineCurve fitCurve(const std::vector<Vec3d>& points, const std::vector<double>& params, int n) {
     BSplineCurve c;
     c.knots = clampedUniformKnots(n, 0.0, 1.0);
     c.ctrl.assign(std::size_t(n), Vec3d());
     c.ctrl.front() = points.front();
     c.ctrl.back() = points.back();
-    const int free = n - 2;
-    if (free <= 0) return c;
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(free, free);
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(free, 3);
+    if (n <= 2) return c;
+    // The free control points see the samples less what the two fixed ends contribute.
+    const Eigen::MatrixXd B = basisMatrix(c.knots, n, params);
+    Eigen::MatrixXd R(Eigen::Index(points.size()), 3);
     for (std::size_t s = 0; s < points.size(); ++s) {
-        const int k = findSpan(c.knots, n, params[s]);
-        double N[4];
-        basisFunctions(c.knots, k, params[s], N);
-        Vec3d r = points[s];
-        for (int i = 0; i < 4; ++i) {
-            const int j = k - 3 + i;
-            if (j == 0) r -= c.ctrl.front() * N[i];
-            if (j == n - 1) r -= c.ctrl.back() * N[i];
-        }
-        for (int i = 0; i < 4; ++i) {
-            const int a = k - 3 + i - 1;
-            if (a < 0 || a >= free) continue;
-            for (int l = 0; l < 4; ++l) {
-                const int b = k - 3 + l - 1;
-                if (b >= 0 && b < free) A(a, b) += N[i] * N[l];
-            }
-            rhs(a, 0) += N[i] * r.x;
-            rhs(a, 1) += N[i] * r.y;
-            rhs(a, 2) += N[i] * r.z;
-        }
+        const Vec3d r = points[s] - c.ctrl.front() * B(Eigen::Index(s), 0) - c.ctrl.back() * B(Eigen::Index(s), n - 1);
+        R.row(Eigen::Index(s)) << r.x, r.y, r.z;
     }
-    // Bending penalty on second differences of all control points (the fixed ends included).
-    const double lambda = 1e-4 * std::max(1e-12, A.diagonal().mean());
-    for (int i = 0; i + 2 < n; ++i) {
-        const int idx[3] = {i, i + 1, i + 2};
-        const double w[3] = {1, -2, 1};
-        for (int x = 0; x < 3; ++x) {
-            const int a = idx[x] - 1;
-            if (a < 0 || a >= free) continue;
-            for (int y = 0; y < 3; ++y) {
-                const int b = idx[y] - 1;
-                const double v = lambda * w[x] * w[y];
-                if (b >= 0 && b < free) A(a, b) += v;
-                else {
-                    const Vec3d& fixed = idx[y] == 0 ? c.ctrl.front() : c.ctrl.back();
-                    rhs(a, 0) -= v * fixed.x;
-                    rhs(a, 1) -= v * fixed.y;
-                    rhs(a, 2) -= v * fixed.z;
-                }
-            }
-        }
-    }
-    const Eigen::MatrixXd X = A.ldlt().solve(rhs);
-    for (int i = 0; i < free; ++i) c.ctrl[std::size_t(i + 1)] = Vec3d(X(i, 0), X(i, 1), X(i, 2));
+    const Eigen::MatrixXd X = penalizedLeastSquares(B.middleCols(1, n - 2), R, false);
+    for (int i = 0; i + 2 < n; ++i) c.ctrl[std::size_t(i + 1)] = Vec3d(X(i, 0), X(i, 1), X(i, 2));
     return c;
 }
 

@@ -47,7 +47,7 @@ BSplineCurve joined(const std::vector<BSplineCurve>& curves);
 
 // Least-squares fit of a clamped cubic curve with nCtrl control points to points at
 // parameters in [0, 1], through the first and last point exactly, with a small bending
-// penalty so that spans without samples stay well defined.
+// penalty on the free control points so that spans without samples stay well defined.
 BSplineCurve fitCurve(const std::vector<Vec3d>& points, const std::vector<double>& params, int nCtrl);
 
 } // namespace vdbsurf::reeb

@@ -1,6 +1,7 @@
 #include "vdbsurf/reeb/patch_fit.h"
 
-#include <Eigen/Dense>
+#include "vdbsurf/reeb/least_squares.h"
+
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -53,35 +54,6 @@ BSplineCurve endCurve(const ReebGraph& g, const PatchSet& set, const std::vector
         pieces.push_back(p);
     }
     return joined(curves);
-}
-
-// Solves min |B X - R|^2 + lambda |D X|^2 for X, D the (cyclic when `cyclic`) second differences.
-Eigen::MatrixXd leastSquares(const Eigen::MatrixXd& B, const Eigen::MatrixXd& R, bool cyclic) {
-    const Eigen::Index n = B.cols();
-    Eigen::MatrixXd A = B.transpose() * B;
-    const double lambda = 1e-4 * std::max(1e-12, A.diagonal().mean());
-    const Eigen::Index rows = cyclic ? n : n - 2;
-    for (Eigen::Index r = 0; r < rows; ++r) {
-        const Eigen::Index idx[3] = {r, (r + 1) % n, (r + 2) % n};
-        const double w[3] = {1, -2, 1};
-        for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) A(idx[a], idx[b]) += lambda * w[a] * w[b];
-    }
-    // A whisper of ridge keeps the system definite when a coarse grid leaves a control row unseen
-    // and the bending penalty has nothing to bend (two inner rows).
-    A.diagonal().array() += 1e-9 * std::max(1e-12, A.diagonal().mean());
-    return A.ldlt().solve(B.transpose() * R);
-}
-
-Eigen::MatrixXd basisMatrix(const std::vector<double>& knots, int n, const std::vector<double>& params) {
-    Eigen::MatrixXd B = Eigen::MatrixXd::Zero(Eigen::Index(params.size()), n);
-    for (std::size_t s = 0; s < params.size(); ++s) {
-        const int k = findSpan(knots, n, params[s]);
-        double N[4];
-        basisFunctions(knots, k, params[s], N);
-        for (int i = 0; i < 4; ++i) B(Eigen::Index(s), k - 3 + i) += N[i];
-    }
-    return B;
 }
 
 UnitPatch fitUnit(const ReebGraph& g, const PatchSet& set, const Unit& unit, RingGrid grid) {
@@ -139,8 +111,8 @@ UnitPatch fitUnit(const ReebGraph& g, const PatchSet& set, const Unit& unit, Rin
         for (int j = 0; j < V; ++j)
             for (int i = 0; i < U; ++i) R(i, j) = grid.at(i, j)[std::size_t(d)];
         R -= (Bu * c0) * Bv.col(0).transpose() + (Bu * cN) * Bv.col(nv - 1).transpose();
-        const Eigen::MatrixXd Y = leastSquares(Bf, R, true);                          // (nu-1) x V
-        const Eigen::MatrixXd X = leastSquares(Bvi, Y.transpose(), false).transpose(); // (nu-1) x (nv-2)
+        const Eigen::MatrixXd Y = penalizedLeastSquares(Bf, R, true);                          // (nu-1) x V
+        const Eigen::MatrixXd X = penalizedLeastSquares(Bvi, Y.transpose(), false).transpose(); // (nu-1) x (nv-2)
         for (int j = 1; j + 1 < nv; ++j)
             for (int i = 0; i < nu; ++i)
                 S.ctrl[std::size_t(j) * std::size_t(nu) + std::size_t(i)][std::size_t(d)] = X(i % (nu - 1), j - 1);
