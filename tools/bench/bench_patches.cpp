@@ -52,36 +52,33 @@ int main(int argc, char** argv) {
     }
     for (const std::string& path : extra) cases.push_back({path.substr(path.find_last_of('/') + 1), readMesh(path), Vec3d(0, 0, 1)});
 
-    bench::Table table({"mesh", "triangles", "nodes", "arcs", "surface s", "height s", "reeb s", "grids s", "fit s", "tessellate s",
-                        "error s", "total s", "RMS (edges)", "max (edges)"});
+    std::vector<std::string> columns{"mesh", "triangles", "nodes", "arcs"};
+    for (const auto& stage : reeb::PatchTimings{}.stages()) columns.push_back(std::string(stage.first) + " s");
+    columns.insert(columns.end(), {"total s", "RMS (edges)", "max (edges)"});
+    bench::Table table(columns);
     for (const Case& c : cases) {
         reeb::PatchJob job;
         job.axis = c.axis;
         reeb::PatchResult r;
-        std::vector<double> totals;
         const bench::Measure m = bench::measureMedian(repeat, [&] { r = reeb::makePatches(c.mesh, c.name, job); });
-        const reeb::PatchTimings& t = r.seconds;
-        table.add({c.name, std::to_string(r.surface.triangleCount()), std::to_string(r.graph.nodes.size()), std::to_string(r.graph.units.size()),
-                   bench::fixed(t.surface, 3), bench::fixed(t.height, 3), bench::fixed(t.reeb, 3), bench::fixed(t.grids, 3), bench::fixed(t.fit, 3),
-                   bench::fixed(t.tessellate, 3), bench::fixed(t.error, 3), bench::fixed(m.seconds, 3), bench::fixed(r.error.rms, 3),
-                   bench::fixed(r.error.max, 3)},
-                  {{"mesh", c.name},
-                   {"triangles", r.surface.triangleCount()},
-                   {"nodes", r.graph.nodes.size()},
-                   {"arcs", r.graph.units.size()},
-                   {"loops", r.graph.loops()},
-                   {"seconds",
-                    {{"surface", t.surface},
-                     {"height", t.height},
-                     {"reeb", t.reeb},
-                     {"grids", t.grids},
-                     {"fit", t.fit},
-                     {"tessellate", t.tessellate},
-                     {"error", t.error},
-                     {"total", m.seconds}}},
-                   {"peak_mib", m.peakMiB},
-                   {"fit_error_rms_edges", r.error.rms},
-                   {"fit_error_max_edges", r.error.max}});
+        std::vector<std::string> row{c.name, std::to_string(r.surface.triangleCount()), std::to_string(r.graph.nodes.size()),
+                                     std::to_string(r.graph.units.size())};
+        nlohmann::json seconds;
+        for (const auto& [stage, s] : r.seconds.stages()) {
+            row.push_back(bench::fixed(s, 3));
+            seconds[stage] = s;
+        }
+        seconds["total"] = m.seconds;
+        row.insert(row.end(), {bench::fixed(m.seconds, 3), bench::fixed(r.error.rms, 3), bench::fixed(r.error.max, 3)});
+        table.add(row, {{"mesh", c.name},
+                        {"triangles", r.surface.triangleCount()},
+                        {"nodes", r.graph.nodes.size()},
+                        {"arcs", r.graph.units.size()},
+                        {"loops", r.graph.loops()},
+                        {"seconds", seconds},
+                        {"peak_mib", m.peakMiB},
+                        {"fit_error_rms_edges", r.error.rms},
+                        {"fit_error_max_edges", r.error.max}});
     }
     table.print();
     if (!json.empty()) table.writeJson(json, "bench_patches", {{"repeat", repeat}, {"threads", ThreadLimit(0).threads()}});

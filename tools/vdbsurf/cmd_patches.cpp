@@ -89,12 +89,14 @@ void runPatches(const PatchesOptions& o) {
         note(std::to_string(r.patches.sectionsBlended) + " ring-grid sections found no contour (flat or re-ordered parts of a unit) " +
              "and were blended from the sections beside them");
     if (!o.stats.empty()) {
-        const reeb::PatchTimings& t = r.seconds;
         nlohmann::json units = nlohmann::json::array();
         for (std::size_t i = 0; i < g.units.size(); ++i) {
             const reeb::UnitPatch& p = r.patches.patches[i];
             units.push_back({{"grid", {p.grid.U, p.grid.V}}, {"control_points", {p.surface.nu, p.surface.nv}}, {"area", g.units[i].area}});
         }
+        nlohmann::json seconds;
+        for (const auto& [stage, s] : r.seconds.stages()) seconds[stage] = s;
+        seconds["total"] = since(t0);
         writeJsonFile(o.stats, {{"input", o.input},
                                 {"output", o.output},
                                 {"input_polygons", input.polygonCount()},
@@ -112,15 +114,7 @@ void runPatches(const PatchesOptions& o) {
                                 {"mean_edge_length", r.error.meanEdgeLength},
                                 {"units", units},
                                 {"threads", threads.threads()},
-                                {"seconds",
-                                 {{"surface", t.surface},
-                                  {"height", t.height},
-                                  {"reeb", t.reeb},
-                                  {"grids", t.grids},
-                                  {"fit", t.fit},
-                                  {"tessellate", t.tessellate},
-                                  {"error", t.error},
-                                  {"total", since(t0)}}}});
+                                {"seconds", seconds}});
     }
 }
 

@@ -4,7 +4,9 @@
 #pragma once
 #include "vdbsurf/reeb/patch_output.h"
 
+#include <array>
 #include <string>
+#include <utility>
 
 namespace vdbsurf::reeb {
 
@@ -20,6 +22,10 @@ struct PatchJob {
 
 struct PatchTimings {
     double surface = 0, height = 0, reeb = 0, grids = 0, fit = 0, tessellate = 0, error = 0;
+    // In pipeline order, under the names the command line's stats and the benchmark report them by.
+    std::array<std::pair<const char*, double>, 7> stages() const {
+        return {{{"surface", surface}, {"height", height}, {"reeb", reeb}, {"grids", grids}, {"fit", fit}, {"tessellate", tessellate}, {"error", error}}};
+    }
 };
 
 struct PatchResult {
