@@ -44,7 +44,7 @@ ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName)
     std::vector<std::uint32_t> cornerVertex, partner;
     const std::vector<std::uint32_t> copies = splitVertexFans(tris, inputName, cornerVertex, partner);
     if (!copies.empty())
-        throw Error(inputName, "vertex " + std::to_string(copies.front()) + " joins " + "separate fans of polygons (a non-manifold vertex" +
+        throw Error(inputName, "vertex " + std::to_string(copies.front()) + " joins separate fans of polygons (a non-manifold vertex" +
                                    (copies.size() > 1 ? ", and " + std::to_string(copies.size() - 1) + " more" : std::string()) +
                                    "); the Reeb graph needs a closed manifold surface");
     for (std::uint32_t c = 0; c < partner.size(); ++c)

@@ -104,17 +104,20 @@ std::vector<std::uint32_t> sweepFrom(const ClosedSurface& s, const std::vector<s
 
 } // namespace
 
+Vec3d acrossAxis(const Vec3d& axis) {
+    // Tilted off the coordinate planes, so that tie-breaks do not tie again on meshes built on a lattice.
+    const Vec3d generic = normalized(Vec3d(0.5257311, 0.3313243, 0.7837181));
+    Vec3d across = generic - axis * dot(generic, axis);
+    if (length(across) < 1e-3) across = cross(axis, Vec3d(0.2673, -0.5345, 0.8018));
+    return normalized(across);
+}
+
 HeightFunction makeHeightFunction(const ClosedSurface& s, const Vec3d& axisIn) {
     const double len = length(axisIn);
     if (!(len > 0) || !std::isfinite(len)) throw Error("--axis", "the height axis must be a non-zero direction");
     HeightFunction f;
     f.axis = axisIn / len;
-    // Two directions across the axis, tilted off the coordinate planes so that tie-breaks do
-    // not tie again on meshes built on a lattice.
-    const Vec3d generic = normalized(Vec3d(0.5257311, 0.3313243, 0.7837181));
-    Vec3d e1 = generic - f.axis * dot(generic, f.axis);
-    if (length(e1) < 1e-3) e1 = cross(f.axis, Vec3d(0.2673, -0.5345, 0.8018));
-    e1 = normalized(e1);
+    const Vec3d e1 = acrossAxis(f.axis);
     const Vec3d e2 = cross(f.axis, e1);
     const std::size_t n = s.points.size();
     f.height.resize(n);

@@ -17,6 +17,10 @@ struct HeightFunction {
     std::vector<std::uint32_t> byRank;
 };
 
+// A fixed generic unit direction perpendicular to the unit axis: the first tie-break, and where
+// ring grids of units without a saddle put their seam.
+Vec3d acrossAxis(const Vec3d& axis);
+
 // Ties in height are broken by two fixed generic directions across the axis, then by index.
 // Breaking ties linearly keeps a flat plateau free of critical points inside it (a linear
 // function on a plane has none); breaking them by index alone would scatter spurious minima

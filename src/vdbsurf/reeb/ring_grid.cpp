@@ -231,8 +231,7 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
                 for (int v : {V / 2 - d, V / 2 + d})
                     if (anchor < 0 && v > 0 && v + 1 < V && !loopsAt[std::size_t(v)].empty()) anchor = v;
             if (anchor >= 0) {
-                const Vec3d generic(0.5257311, 0.3313243, 0.7837181);
-                const Vec3d across = normalized(generic - g.axis * dot(generic, g.axis));
+                const Vec3d across = acrossAxis(g.axis);
                 const std::vector<Vec3d> fine = resampleLoop(loopsAt[std::size_t(anchor)], 4 * U, 0.0);
                 std::size_t best = 0;
                 for (std::size_t i = 1; i < fine.size(); ++i)
