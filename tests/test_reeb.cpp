@@ -97,6 +97,19 @@ void checkRings(const PatchResult& r) {
             double longest = 0;
             for (int u = 0; u + 1 < grid.U; ++u) longest = std::max(longest, length(grid.at(u + 1, v) - grid.at(u, v)));
             CHECK(length(grid.at(0, v) - grid.at(grid.U - 1, v)) <= longest * 1.01 + 1e-12);
+            // No twist: turning the next row by whole grid steps never brings it closer to this one.
+            if (v + 1 < grid.V) {
+                auto cost = [&](int k) {
+                    double c = 0;
+                    for (int u = 0; u < grid.U; ++u) {
+                        const Vec3d d = grid.at((u + k) % grid.U, v + 1) - grid.at(u, v);
+                        c += dot(d, d);
+                    }
+                    return c;
+                };
+                const double chosen = cost(0);
+                for (int k = 1; k < grid.U; ++k) CHECK(chosen <= cost(k) * (1 + 1e-9) + 1e-18);
+            }
             if (v > 0 && v + 1 < grid.V && grid.sectionsBlended == 0)
                 for (int u = 0; u < grid.U; ++u) CHECK(dot(grid.at(u, v), r.graph.axis) == Approx(grid.heights[std::size_t(v)]).margin(1e-9));
         }
