@@ -235,6 +235,66 @@ TEST_CASE("adaptive refinement keeps faces of depth 0 and matches uniform refine
     CHECK(partial.polygonCount() < subdivideUniform(input, 3, "mixed").polygonCount());
 }
 
+TEST_CASE("a step refining every face makes the same mesh, kinds and tags as the general path") {
+    // The full-refinement path numbers its elements arithmetically; the general (adaptive) path
+    // links polygon lists. Same surface, same polygons with orientation, same per-face tags, at
+    // every half level — also after an adaptive first step has left faces of mixed kinds, and on
+    // open meshes where the even step splits boundary edges.
+    std::mt19937 rng(11);
+    const std::vector<Mesh> meshes = {test::mixedClosedMesh(), test::quadTorusMesh(5, 4, 2, 0.7), test::openGridMesh(3),
+                                      test::triangleFanDisc(5), test::openCubeMesh(), test::pyramidMesh()};
+    for (std::size_t k = 0; k < meshes.size(); ++k)
+        for (int adaptiveFirst = 0; adaptiveFirst < 2; ++adaptiveFirst) {
+            Sqrt2Subdivider fast(meshes[k], "fast"), general(meshes[k], "general");
+            general.setAlwaysGeneral(true);
+            std::vector<std::uint32_t> tags(meshes[k].polygonCount());
+            for (std::uint32_t& t : tags) t = 1u << (rng() % 8);
+            fast.setTags(tags, Sqrt2Subdivider::TagMerge::BitOr);
+            general.setTags(tags, Sqrt2Subdivider::TagMerge::BitOr);
+            if (adaptiveFirst) {
+                std::vector<std::uint8_t> some(meshes[k].polygonCount());
+                for (std::uint8_t& r : some) r = std::uint8_t(rng() % 2);
+                some[0] = 1;
+                fast.step(some);
+                general.step(some);
+            }
+            for (int step = 1; step <= 4; ++step) {
+                fast.step();
+                general.step();
+                INFO("mesh " << k << ", adaptive first step " << adaptiveFirst << ", full step " << step);
+                const Mesh g = general.mesh();
+                reference::CatmarkResult asReference;
+                asReference.positions = general.positions();
+                asReference.offsets = g.offsets;
+                asReference.indices = g.indices;
+                double worst = 0;
+                std::string why;
+                const bool same = sameMesh(fast.mesh(), fast.positions(), asReference, 1e-12 * diagonal(asReference.positions), worst, why);
+                INFO(why);
+                REQUIRE(same);
+                // Tags travel with their faces: compare (rounded face centroid, tag) lists. The offset
+                // keeps dyadic centroids (common here) off the rounding boundaries.
+                auto tagged = [](const Sqrt2Subdivider& s) {
+                    std::vector<std::tuple<long long, long long, long long, std::uint32_t>> out;
+                    const std::vector<std::uint32_t> t = s.tags();
+                    std::vector<Vec3d> corners;
+                    for (std::size_t f = 0; f < s.faceCount(); ++f) {
+                        s.faceCorners(f, corners);
+                        Vec3d c(0, 0, 0);
+                        for (const Vec3d& p : corners) c += p;
+                        c = c / double(corners.size());
+                        auto q = [](double x) { return std::llround(x * 1e7 + 0.318309886); };
+                        out.emplace_back(q(c.x), q(c.y), q(c.z), t[f]);
+                    }
+                    std::sort(out.begin(), out.end());
+                    return out;
+                };
+                CHECK(tagged(fast) == tagged(general));
+                CHECK(checkTopology(fast.mesh()).inconsistentEdges == 0);
+            }
+        }
+}
+
 TEST_CASE("subdivision output does not depend on the thread count") {
     const Mesh input = test::quadTorusMesh(9, 6, 2, 0.5);
     Mesh one, two;

@@ -7,7 +7,13 @@
 
 namespace vdbsurf::subdiv {
 
-
+void releaseSpare(HalfedgeMesh& mesh, const FaceProperties& props) {
+    mesh.clean(); // frees vertices, edges and faces but not property storage
+    std::vector<HalfedgeMesh::Point>().swap(mesh.property(mesh.points_pph()).data_vector());
+    std::vector<HalfedgeMesh::Point>().swap(mesh.property(props.storedPoint).data_vector());
+    std::vector<std::uint8_t>().swap(mesh.property(props.kind).data_vector());
+    std::vector<std::uint32_t>().swap(mesh.property(props.tag).data_vector());
+}
 
 void assemble(HalfedgeMesh& m, std::size_t nV, const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
               const std::vector<std::uint32_t>& partner) {

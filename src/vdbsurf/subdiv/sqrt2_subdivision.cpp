@@ -2,10 +2,13 @@
 // vertex moves from the old mesh; the new polygons face by face (counted, prefix-summed, then
 // filled, all in parallel, each value depending only on the old mesh, so the thread count
 // cannot change the result); then subdiv::assemble() links the halfedges of the new level.
+// A step that refines every face goes through subdiv::refineEveryFace instead, which writes the
+// next level into the second mesh by arithmetic numbering.
 #include "vdbsurf/subdiv/sqrt2_subdivision.h"
 
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/subdiv/halfedge_mesh.h"
+#include "vdbsurf/subdiv/uniform_step.h"
 
 
 #include <algorithm>
@@ -15,31 +18,28 @@ namespace vdbsurf {
 using subdiv::HalfedgeMesh;
 using Point = HalfedgeMesh::Point;
 
-namespace {
-
-// What a face carries into the next step.
-enum FaceKind : std::uint8_t {
-    kPlain = 0,       // next face point is the vertex average
-    kStoredPoint = 1, // merged quad of an odd step: next face point is the stored edge point
-    kBoundaryEdge = 2 // fan triangle on a boundary edge: the even step splits that edge at the stored midpoint
-};
-
-} // namespace
+using subdiv::kBoundaryEdge;
+using subdiv::kPlain;
+using subdiv::kStoredPoint;
 
 struct Sqrt2Subdivider::Impl {
-    HalfedgeMesh mesh;
-    OpenMesh::FPropHandleT<Point> storedPoint;
-    OpenMesh::FPropHandleT<std::uint8_t> kind;
-    OpenMesh::FPropHandleT<std::uint32_t> tag;
+    // The current level and the spare a full step writes the next level into; they swap roles.
+    HalfedgeMesh meshes[2];
+    int current = 0;
+    subdiv::FaceProperties props;
     TagMerge merge = TagMerge::Max;
+    bool alwaysGeneral = false;
+
+    HalfedgeMesh& mesh() { return meshes[current]; }
+    const HalfedgeMesh& mesh() const { return meshes[current]; }
     int steps = 0;
     std::size_t splitVertices = 0;
 
     Point centroid(HalfedgeMesh::FaceHandle f) const {
         Point c(0, 0, 0);
         int n = 0;
-        for (const auto v : mesh.fv_range(f)) {
-            c += mesh.point(v);
+        for (const auto v : mesh().fv_range(f)) {
+            c += mesh().point(v);
             ++n;
         }
         return c / double(n);
@@ -51,13 +51,22 @@ struct Sqrt2Subdivider::Impl {
 };
 
 Sqrt2Subdivider::Sqrt2Subdivider(const Mesh& mesh, const std::string& inputName) : mImpl(new Impl) {
-    mImpl->splitVertices = subdiv::buildHalfedgeMesh(mesh, inputName, mImpl->mesh);
-    mImpl->mesh.add_property(mImpl->storedPoint);
-    mImpl->mesh.add_property(mImpl->kind);
-    mImpl->mesh.add_property(mImpl->tag);
-    for (const auto f : mImpl->mesh.faces()) {
-        mImpl->mesh.property(mImpl->kind, f) = kPlain;
-        mImpl->mesh.property(mImpl->tag, f) = 0;
+    HalfedgeMesh& m = mImpl->mesh();
+    mImpl->splitVertices = subdiv::buildHalfedgeMesh(mesh, inputName, m);
+    subdiv::FaceProperties& props = mImpl->props;
+    m.add_property(props.storedPoint);
+    m.add_property(props.kind);
+    m.add_property(props.tag);
+    subdiv::FaceProperties spare;
+    HalfedgeMesh& other = mImpl->meshes[1 - mImpl->current];
+    other.add_property(spare.storedPoint);
+    other.add_property(spare.kind);
+    other.add_property(spare.tag);
+    if (spare.storedPoint != props.storedPoint || spare.kind != props.kind || spare.tag != props.tag)
+        throw std::logic_error("Sqrt2Subdivider: the two meshes registered their properties differently");
+    for (const auto f : m.faces()) {
+        m.property(props.kind, f) = kPlain;
+        m.property(props.tag, f) = 0;
     }
 }
 
@@ -65,20 +74,22 @@ Sqrt2Subdivider::~Sqrt2Subdivider() = default;
 
 int Sqrt2Subdivider::stepsDone() const { return mImpl->steps; }
 std::size_t Sqrt2Subdivider::splitVertices() const { return mImpl->splitVertices; }
-std::size_t Sqrt2Subdivider::faceCount() const { return mImpl->mesh.n_faces(); }
-std::size_t Sqrt2Subdivider::vertexCount() const { return mImpl->mesh.n_vertices(); }
+std::size_t Sqrt2Subdivider::faceCount() const { return mImpl->mesh().n_faces(); }
+std::size_t Sqrt2Subdivider::vertexCount() const { return mImpl->mesh().n_vertices(); }
 
 void Sqrt2Subdivider::setTags(const std::vector<std::uint32_t>& tags, TagMerge merge) {
     if (tags.size() != faceCount()) throw std::invalid_argument("Sqrt2Subdivider::setTags: one tag per face");
     mImpl->merge = merge;
-    for (const auto f : mImpl->mesh.faces()) mImpl->mesh.property(mImpl->tag, f) = tags[std::size_t(f.idx())];
+    for (const auto f : mImpl->mesh().faces()) mImpl->mesh().property(mImpl->props.tag, f) = tags[std::size_t(f.idx())];
 }
 
 std::vector<std::uint32_t> Sqrt2Subdivider::tags() const {
     std::vector<std::uint32_t> out(faceCount());
-    for (const auto f : mImpl->mesh.faces()) out[std::size_t(f.idx())] = mImpl->mesh.property(mImpl->tag, f);
+    for (const auto f : mImpl->mesh().faces()) out[std::size_t(f.idx())] = mImpl->mesh().property(mImpl->props.tag, f);
     return out;
 }
+
+void Sqrt2Subdivider::setAlwaysGeneral(bool general) { mImpl->alwaysGeneral = general; }
 
 void Sqrt2Subdivider::step() { step(std::vector<std::uint8_t>(faceCount(), 1)); }
 
@@ -88,8 +99,16 @@ void Sqrt2Subdivider::step(const std::vector<std::uint8_t>& refine) {
 }
 
 void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
-    HalfedgeMesh& m = mesh;
     const bool odd = steps % 2 == 0; // the step about to run is step steps + 1
+    if (!alwaysGeneral && std::find(refine.begin(), refine.end(), 0) == refine.end()) {
+        HalfedgeMesh& next = meshes[1 - current];
+        subdiv::refineEveryFace(mesh(), props, odd, merge == TagMerge::BitOr, next);
+        releaseSpare(mesh(), props);
+        current = 1 - current;
+        ++steps;
+        return;
+    }
+    HalfedgeMesh& m = mesh();
     const std::size_t nF = m.n_faces(), nE = m.n_edges(), nV = m.n_vertices();
     auto refined = [&](HalfedgeMesh::FaceHandle f) { return f.is_valid() && refine[std::size_t(f.idx())] != 0; };
 
@@ -109,7 +128,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     subdiv::parallelFor(nF, [&](std::size_t i) {
         if (!refine[i]) return;
         const auto f = m.face_handle(int(i));
-        facePoint[i] = (!odd && m.property(kind, f) != kPlain) ? m.property(storedPoint, f) : centroid(f);
+        facePoint[i] = (!odd && m.property(props.kind, f) != kPlain) ? m.property(props.storedPoint, f) : centroid(f);
     });
 
     // Edges whose two faces are both refined disappear; on the odd step their Catmull-Clark edge
@@ -169,7 +188,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     // (u, P_g, w, P_f), made by the face holding the edge's first halfedge. On the even step a
     // boundary triangle has no piece on its boundary halfedge: that edge is split at P instead.
     auto skipsHalfedge = [&](HalfedgeMesh::FaceHandle f, HalfedgeMesh::HalfedgeHandle h) {
-        return !odd && m.property(kind, f) == kBoundaryEdge && m.is_boundary(m.opposite_halfedge_handle(h));
+        return !odd && m.property(props.kind, f) == kBoundaryEdge && m.is_boundary(m.opposite_halfedge_handle(h));
     };
     std::vector<std::uint32_t> polyCount(nF + 1, 0), cornerCount(nF + 1, 0);
     subdiv::parallelFor(nF, [&](std::size_t i) {
@@ -211,7 +230,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     subdiv::parallelFor(nF, [&](std::size_t i) {
         const auto f = m.face_handle(int(i));
         std::uint32_t p = polyCount[i], c = cornerCount[i];
-        const std::uint32_t fTag = m.property(tag, f);
+        const std::uint32_t fTag = m.property(props.tag, f);
         if (!refine[i]) {
             offsets[p] = c;
             // From the face's first halfedge's start, so a face left alone keeps its corner order.
@@ -219,8 +238,8 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
                 edgeCorner[std::size_t(h.idx())] = c;
                 indices[c++] = std::uint32_t(m.from_vertex_handle(h).idx());
             }
-            newKind[p] = m.property(kind, f);
-            newStored[p] = m.property(storedPoint, f);
+            newKind[p] = m.property(props.kind, f);
+            newStored[p] = m.property(props.storedPoint, f);
             newTag[p] = fTag;
             return;
         }
@@ -257,7 +276,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
                 indices[c++] = pf;
                 newKind[p] = odd ? kStoredPoint : kPlain;
                 if (odd) newStored[p] = edgePoint[e];
-                newTag[p] = combine(fTag, m.property(tag, g));
+                newTag[p] = combine(fTag, m.property(props.tag, g));
                 ++p;
             }
         }
@@ -275,19 +294,19 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     });
     subdiv::assemble(m, next, offsets, indices, partner);
     subdiv::parallelFor(next, [&](std::size_t i) { m.set_point(HalfedgeMesh::VertexHandle(int(i)), position[i]); });
-    m.property(kind).data_vector() = std::move(newKind);
-    m.property(storedPoint).data_vector() = std::move(newStored);
-    m.property(tag).data_vector() = std::move(newTag);
+    m.property(props.kind).data_vector() = std::move(newKind);
+    m.property(props.storedPoint).data_vector() = std::move(newStored);
+    m.property(props.tag).data_vector() = std::move(newTag);
     ++steps;
 }
 
-Mesh Sqrt2Subdivider::mesh() const { return subdiv::toMesh(mImpl->mesh); }
+Mesh Sqrt2Subdivider::mesh() const { return subdiv::toMesh(mImpl->mesh()); }
 
 std::vector<Vec3d> Sqrt2Subdivider::positions() const {
     std::vector<Vec3d> out;
     out.reserve(vertexCount());
-    for (const auto v : mImpl->mesh.vertices()) {
-        const Point& p = mImpl->mesh.point(v);
+    for (const auto v : mImpl->mesh().vertices()) {
+        const Point& p = mImpl->mesh().point(v);
         out.emplace_back(p[0], p[1], p[2]);
     }
     return out;
@@ -295,20 +314,20 @@ std::vector<Vec3d> Sqrt2Subdivider::positions() const {
 
 void Sqrt2Subdivider::faceCorners(std::size_t f, std::vector<Vec3d>& out) const {
     out.clear();
-    for (const auto v : mImpl->mesh.fv_range(mImpl->mesh.face_handle(int(f)))) {
-        const Point& p = mImpl->mesh.point(v);
+    for (const auto v : mImpl->mesh().fv_range(mImpl->mesh().face_handle(int(f)))) {
+        const Point& p = mImpl->mesh().point(v);
         out.emplace_back(p[0], p[1], p[2]);
     }
 }
 
 void Sqrt2Subdivider::faceVertices(std::size_t f, std::vector<std::uint32_t>& out) const {
     out.clear();
-    for (const auto v : mImpl->mesh.fv_range(mImpl->mesh.face_handle(int(f)))) out.push_back(std::uint32_t(v.idx()));
+    for (const auto v : mImpl->mesh().fv_range(mImpl->mesh().face_handle(int(f)))) out.push_back(std::uint32_t(v.idx()));
 }
 
 void Sqrt2Subdivider::edgeFaces(std::vector<std::pair<std::int64_t, std::int64_t>>& faces,
                                 std::vector<std::pair<std::uint32_t, std::uint32_t>>& vertices) const {
-    const HalfedgeMesh& m = mImpl->mesh;
+    const HalfedgeMesh& m = mImpl->mesh();
     faces.resize(m.n_edges());
     vertices.resize(m.n_edges());
     for (const auto e : m.edges()) {

@@ -54,6 +54,11 @@ public:
     void setTags(const std::vector<std::uint32_t>& tags, TagMerge merge);
     std::vector<std::uint32_t> tags() const;
 
+    // A step that refines every face takes a faster path (uniform_step.h) making the same surface
+    // with the new faces in another order; true sends every step through the general path, for
+    // tests and benchmarks that compare the two.
+    void setAlwaysGeneral(bool general);
+
     // One √2 step refining the faces whose entry is non-zero (current face order), or all.
     void step(const std::vector<std::uint8_t>& refine);
     void step();
