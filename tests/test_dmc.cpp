@@ -3,7 +3,12 @@
 #include "support/test_support.h"
 
 #include "vdbsurf/core/threads.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/dmc/sharp_features.h"
+#include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/lattice/lattice.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_distance.h"
@@ -11,7 +16,9 @@
 
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <random>
 #include <sstream>
 
@@ -262,6 +269,53 @@ TEST_CASE("a rotated cube on a coarse lattice keeps its corners exactly and its 
         INFO("median edge distance: dmc " << ed[ed.size() / 2] / h << " H, mc " << em[em.size() / 2] / h << " H");
         CHECK(ed[ed.size() / 2] < 0.1 * h);
         CHECK(ed[ed.size() / 2] < 0.5 * em[em.size() / 2]);
+    }
+}
+
+TEST_CASE("on a grid at its own voxel size, skipping cells whose corner gradients rule out an edge changes no sharp feature") {
+    // A rotated, slightly rounded cube and a smooth ball as level-set grids meshed at their voxel
+    // size: crossing normals come from interpolated node gradients, and the sharp pass visits
+    // only the cells the gradients leave open. The result must be exactly that of visiting all.
+    const double ax = 0.4, ay = 0.2, az = 0.9;
+    const double cx = std::cos(ax), sx = std::sin(ax), cy = std::cos(ay), sy = std::sin(ay), cz = std::cos(az), sz = std::sin(az);
+    const double R[3][3] = {{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
+                            {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
+                            {-sy, cy * sx, cy * cx}};
+    auto cube = [&](const Vec3d& p) {
+        double d = -INFINITY;
+        for (int i = 0; i < 3; ++i) d = std::max(d, std::fabs(R[0][i] * p.x + R[1][i] * p.y + R[2][i] * p.z));
+        return d - 0.7;
+    };
+    auto ball = [](const Vec3d& p) { return length(p - Vec3d(0.1, -0.05, 0.02)) - 0.8; };
+    const Box3 box{{-1.3, -1.3, -1.3}, {1.3, 1.3, 1.3}};
+    int shape = 0;
+    for (const std::function<double(const Vec3d&)>& sdf : {std::function<double(const Vec3d&)>(cube), std::function<double(const Vec3d&)>(ball)}) {
+        INFO("shape " << shape++);
+        const GridField field(test::makeLevelSetFromDistance(sdf, box, 0.05), "grid");
+        const LatticeFrame frame = field.naturalFrame(*field.naturalSpacing());
+        REQUIRE(field.edgesAreLinear(frame));
+        std::vector<std::pair<openvdb::Coord, openvdb::Vec3f>> placed[2];
+        SharpStats stats[2];
+        for (int all = 0; all < 2; ++all) {
+            Lattice lattice = buildLattice(field, frame, latticeCellRange(field, frame), 0.0, CellTest::CornerSigns);
+            SurfaceOptions so;
+            so.normals = true;
+            so.sharpEdgeCosine = all ? 1.0 : 0.9;
+            LatticeSurface surface(field, lattice, nullptr, so);
+            LatticeDeformation deformation;
+            SharpOptions sh;
+            placeSharpFeatures(field, lattice, surface, sh, deformation, &stats[all]);
+            for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) placed[all].emplace_back(it.getCoord(), *it);
+        }
+        CHECK(stats[0].edgeCells == stats[1].edgeCells);
+        CHECK(stats[0].cornerCells == stats[1].cornerCells);
+        CHECK(stats[0].rejected == stats[1].rejected);
+        CHECK(placed[0] == placed[1]);
+        INFO("edge cells " << stats[0].edgeCells << " corner cells " << stats[0].cornerCells << " rejected " << stats[0].rejected << " on edges " << stats[0].nodesOnEdges << " on corners " << stats[0].nodesOnCorners);
+        // The cube's edges are found (its corners, smoothed by central differences at this
+        // resolution, are not: see the closing note of issue 4); the ball has no feature.
+        if (shape == 1) CHECK(stats[0].nodesOnEdges >= 50);
+        else CHECK(stats[0].nodesOnCorners + stats[0].nodesOnEdges == 0);
     }
 }
 

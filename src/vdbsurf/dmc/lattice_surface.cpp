@@ -5,6 +5,7 @@
 #include "vdbsurf/dmc/cube_table.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/leaf_nodes.h"
+#include "vdbsurf/dmc/node_gradients.h"
 
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/parallel_for.h>
@@ -35,6 +36,8 @@ struct LeafWork {
     std::vector<std::uint16_t> vertexPrefix;
     std::vector<Vec3f> vertices;
     std::vector<Vec3f> normals;
+    // Per cell (rank): may a sharp feature pass through it? Only kept with normals.
+    std::vector<std::uint8_t> sharpCandidate;
     // Vertices that sit exactly on a node whose value is the iso value: (local vertex, node).
     std::vector<std::pair<std::uint32_t, Coord>> nodeVertices;
     std::uint32_t centreCount = 0; // vertices added at loop centres, numbered after the edge vertices
@@ -100,6 +103,7 @@ void LatticeSurface::Impl::firstPass() {
     const LatticeFrame& frame = lattice.frame;
     const CoordBBox& range = lattice.cellRange;
     const bool tri = options.triangulate;
+    const bool nodeGradients = options.normals && linear;
     const double outward = side == Inside::Below ? 1.0 : -1.0;
 
     const std::size_t leafCount = leafManager.leafCount();
@@ -124,6 +128,7 @@ void LatticeSurface::Impl::firstPass() {
         // 0: in place, 1: moved, 2: on a sharp feature (value = iso) counted outside, 3: the same counted inside
         std::array<std::uint8_t, kLeafNodeCount> moved;
         std::array<Vec3f, kLeafNodeCount> offsets;
+        NodeGradients gradients;
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
             const MaskLeaf& leaf = leafManager.leaf(li);
             LeafWork& w = work[li];
@@ -142,10 +147,22 @@ void LatticeSurface::Impl::firstPass() {
             w.config.resize(cells);
             w.ownedEdges.resize(cells);
             w.vertexPrefix.resize(cells);
+            if (options.normals) w.sharpCandidate.assign(cells, 1);
 
             sampleLeafNodes(field, frame, leaf, needed, vals);
+            if (nodeGradients) gradients.sample(field, frame, w.origin);
             moved.fill(0);
-            if (deformation) {
+            // Most leaves hold no moved node: one probe per 8^3 block of the deformation's trees
+            // (a missing leaf under an inactive tile holds none) instead of three per node.
+            auto deformedNear = [&](const Coord& o) {
+                for (int d = 0; d < 8; ++d) {
+                    const Coord lo = o.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1));
+                    if (offsetAcc->probeConstLeaf(lo) || offsetAcc->isValueOn(lo) || surfaceAcc->probeConstLeaf(lo) || surfaceAcc->isValueOn(lo))
+                        return true;
+                }
+                return false;
+            };
+            if (deformation && deformedNear(w.origin)) {
                 for (int z = 0; z < kLeafNodesPerSide; ++z)
                     for (int y = 0; y < kLeafNodesPerSide; ++y)
                         for (int x = 0; x < kLeafNodesPerSide; ++x) {
@@ -210,24 +227,33 @@ void LatticeSurface::Impl::firstPass() {
                     // those vertices coincide and are welded into one after the second pass.
                     const std::uint32_t local = std::uint32_t(w.vertices.size());
                     Vec3d p;
+                    double t;
                     if (va == iso || vb == iso) {
                         const bool atA = va == iso;
+                        t = atA ? 0.0 : 1.0;
                         p = atA ? pa : pb;
                         const Vec3i ln = atA ? la : lb;
                         w.nodeVertices.emplace_back(local, w.origin.offsetBy(ln.x, ln.y, ln.z));
                     } else {
-                        const double t = linear && !moved[ia] && !moved[ib] ? (iso - va) / (vb - va)
-                                                                             : field.edgeCrossing(pa, pb, va, vb, iso);
+                        t = linear && !moved[ia] && !moved[ib] ? (iso - va) / (vb - va) : field.edgeCrossing(pa, pb, va, vb, iso);
                         p = pa + (pb - pa) * t;
                     }
                     w.vertices.push_back(Vec3f(p));
                     if (options.normals) {
-                        Vec3d g = field.gradient(p);
+                        // On a grid at its own voxel size the gradient along an undeformed edge is
+                        // that of the nodes' central differences, interpolated; else the field's.
+                        const bool fromNodes = nodeGradients && !moved[ia] && !moved[ib];
+                        Vec3d g = fromNodes ? gradients.at(la) * (1 - t) + gradients.at(lb) * t : field.gradient(p);
                         const double len = std::sqrt(dot(g, g));
                         w.normals.push_back(len > 0 && std::isfinite(len) ? Vec3f(g * (outward / len)) : Vec3f());
                     }
                 }
                 w.ownedEdges[rank] = owned;
+                if (nodeGradients) {
+                    bool anyMoved = false;
+                    for (int c = 0; c < 8 && !anyMoved; ++c) anyMoved = moved[std::size_t(leafCornerIndex(it.pos(), c))] != 0;
+                    if (!anyMoved) w.sharpCandidate[rank] = gradients.mayHoldSharpEdge(x, y, z, options.sharpEdgeCosine);
+                }
                 for (int l = 0; l < cc.loopCount; ++l) {
                     if (cc.needsCentre & (1u << l)) {
                         ++w.centreCount;
@@ -395,7 +421,7 @@ LatticeSurface::~LatticeSurface() = default;
 
 const SurfaceStats& LatticeSurface::stats() const { return mImpl->stats; }
 
-void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn) const {
+void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn, bool onlySharpCandidates) const {
     const Impl& im = *mImpl;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
         std::array<Vec3f, 12> pos, nrm;
@@ -406,6 +432,7 @@ void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCross
             for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
                 const unsigned config = w.config[rank];
                 if (config == 0 || config == 255) continue;
+                if (onlySharpCandidates && !w.sharpCandidate.empty() && !w.sharpCandidate[rank]) continue;
                 const int off = int(it.pos());
                 CellCrossings c;
                 c.cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);

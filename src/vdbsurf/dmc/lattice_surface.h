@@ -7,7 +7,8 @@
 //
 // Crossings: where the field is linear along undeformed lattice edges (a grid at its own voxel
 // size) by linear interpolation, which is then exact; otherwise Field::edgeCrossing on the true
-// field along the (deformed) edge. A node whose value is exactly the iso value (data, or a node
+// field along the (deformed) edge. Normals likewise: interpolated node gradients where the field
+// is linear along undeformed edges, else the field's gradient. A node whose value is exactly the iso value (data, or a node
 // placed on a sharp feature) carries the crossings of all its edges; those vertices are welded
 // into one and the polygons that collapse are removed, so there are no slivers and no cracks.
 #pragma once
@@ -27,6 +28,9 @@ struct SurfaceOptions {
     double iso = 0;
     bool triangulate = false; // split quads (shorter diagonal): triangles only
     bool normals = false;     // also compute the unit outward normal at every crossing
+    // With normals: cells whose crossing normals provably all lie within this cosine of each
+    // other are not sharp candidates (see node_gradients.h); 1 makes every cell a candidate.
+    double sharpEdgeCosine = 1.0;
     const CancelToken* cancel = nullptr;
 };
 
@@ -56,8 +60,9 @@ public:
     LatticeSurface(const LatticeSurface&) = delete;
     LatticeSurface& operator=(const LatticeSurface&) = delete;
 
-    // Calls fn for every cell with surface, in parallel (fn must be thread-safe).
-    void forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn) const;
+    // Calls fn for every cell with surface, in parallel (fn must be thread-safe); with
+    // onlySharpCandidates, skips the cells that cannot hold a sharp edge (SurfaceOptions).
+    void forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn, bool onlySharpCandidates = false) const;
 
     // After nodes were placed on sharp features (deformation.onSurface; each keeps its side, so
     // no cell case changes): the crossing on every edge of such a node becomes the node itself.

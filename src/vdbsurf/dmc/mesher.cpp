@@ -86,6 +86,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     so.iso = report.iso;
     so.triangulate = request.triangulate;
     so.normals = dmc && request.sharp;
+    so.sharpEdgeCosine = request.sharpEdge;
     so.cancel = request.cancel;
     auto surface = std::make_unique<LatticeSurface>(field, lattice, &deformation, so);
     if (dmc && request.sharp) {

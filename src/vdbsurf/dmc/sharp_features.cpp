@@ -105,6 +105,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return true;
     };
 
+    // Cells whose corner gradients rule out an edge below the surface's sharpEdgeCosine (the
+    // mesher sets it to options.edgeThreshold) are skipped without gathering their crossings.
     surface.forEachSurfaceCell([&](const CellCrossings& cc) {
         Local& local = locals.local();
         Vec3d c[12], n[12];
@@ -194,7 +196,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         const Coord d = p.node - cc.cell;
         p.inside = (cc.config >> (d.x() + 2 * d.y() + 4 * d.z())) & 1u;
         local.proposals.push_back(p);
-    });
+    }, /*onlySharpCandidates=*/true);
 
     SharpStats out;
     std::vector<Proposal> all;

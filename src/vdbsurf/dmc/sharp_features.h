@@ -43,7 +43,8 @@ struct SharpStats {
     double seconds = 0;
 };
 
-// `surface` must have been built with normals on the lattice deformed by the thin search. Adds
+// `surface` must have been built with normals on the lattice deformed by the thin search, and with
+// SurfaceOptions::sharpEdgeCosine no lower than options.edgeThreshold. Adds
 // the nodes it places to deformation.onSurface (with their side in insideOnSurface) and their
 // offsets. Throws Error naming --sharp-edge / --sharp-corner when a threshold is out of [-1, 1].
 void placeSharpFeatures(const Field& field, const Lattice& lattice, const LatticeSurface& surface, const SharpOptions& options,

@@ -221,9 +221,8 @@ public:
             return;
         }
         const Coord base(offset.x() + stride * first.x, offset.y() + stride * first.y, offset.z() + stride * first.z);
-        if (stride == 1 && dims.x == 9 && dims.y == 9 && dims.z == 9 && (base.x() & 7) == 0 && (base.y() & 7) == 0 &&
-            (base.z() & 7) == 0) {
-            sampleLeafBlock(acc, base, out);
+        if (stride == 1) {
+            sampleBlock(acc, base, dims, out);
             return;
         }
         std::size_t n = 0;
@@ -302,25 +301,32 @@ private:
 
     // Block of 9^3 voxels starting at a leaf origin: 8^3 from that leaf, the +1 faces from up to
     // seven neighbours, read straight from leaf buffers.
-    void sampleLeafBlock(Acc& acc, const Coord& base, double* out) const {
-        for (int d = 0; d < 8; ++d) {
-            const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
-            const Coord lo(base.x() + 8 * dx, base.y() + 8 * dy, base.z() + 8 * dz);
-            const int nx = dx ? 1 : 8, ny = dy ? 1 : 8, nz = dz ? 1 : 8;
-            const int ox = 8 * dx, oy = 8 * dy, oz = 8 * dz;
-            if (const LeafT* leaf = acc.probeConstLeaf(lo)) {
-                const auto* data = leaf->buffer().data();
-                for (int k = 0; k < nz; ++k)
-                    for (int j = 0; j < ny; ++j)
-                        for (int i = 0; i < nx; ++i)
-                            out[(oz + k) * 81 + (oy + j) * 9 + (ox + i)] = double(data[(i << 6) + (j << 3) + k]);
-            } else {
-                const double v = double(acc.getValue(lo));
-                for (int k = 0; k < nz; ++k)
-                    for (int j = 0; j < ny; ++j)
-                        for (int i = 0; i < nx; ++i) out[(oz + k) * 81 + (oy + j) * 9 + (ox + i)] = v;
-            }
-        }
+    // Every voxel of the box [base, base + dims), x fastest, leaf by leaf: one probe per leaf the
+    // box touches and direct reads of its buffer, instead of an accessor lookup per voxel.
+    void sampleBlock(Acc& acc, const Coord& base, const Vec3i& dims, double* out) const {
+        const Coord end(base.x() + dims.x, base.y() + dims.y, base.z() + dims.z);
+        for (int cz = base.z() & ~7; cz < end.z(); cz += 8)
+            for (int cy = base.y() & ~7; cy < end.y(); cy += 8)
+                for (int cx = base.x() & ~7; cx < end.x(); cx += 8) {
+                    const int x0 = std::max(cx, base.x()), x1 = std::min(cx + 8, end.x());
+                    const int y0 = std::max(cy, base.y()), y1 = std::min(cy + 8, end.y());
+                    const int z0 = std::max(cz, base.z()), z1 = std::min(cz + 8, end.z());
+                    auto at = [&](int x, int y, int z) -> double& {
+                        return out[(std::size_t(z - base.z()) * std::size_t(dims.y) + std::size_t(y - base.y())) * std::size_t(dims.x) +
+                                   std::size_t(x - base.x())];
+                    };
+                    if (const LeafT* leaf = acc.probeConstLeaf(Coord(cx, cy, cz))) {
+                        const auto* data = leaf->buffer().data();
+                        for (int z = z0; z < z1; ++z)
+                            for (int y = y0; y < y1; ++y)
+                                for (int x = x0; x < x1; ++x) at(x, y, z) = double(data[((x & 7) << 6) | ((y & 7) << 3) | (z & 7)]);
+                    } else {
+                        const double v = double(acc.getValue(Coord(cx, cy, cz)));
+                        for (int z = z0; z < z1; ++z)
+                            for (int y = y0; y < y1; ++y)
+                                for (int x = x0; x < x1; ++x) at(x, y, z) = v;
+                    }
+                }
     }
 
     void computeMinMax(const std::string& label) {
