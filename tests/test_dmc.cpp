@@ -82,6 +82,18 @@ std::string dotWith(const Vec3d& n, const Vec3d& c) {
 }
 std::string radius2(const Vec3d& c) { return "((x-" + num(c.x) + ")^2+(y-" + num(c.y) + ")^2+(z-" + num(c.z) + ")^2)"; }
 
+// Rotation from Euler angles (about x, then y, then z); a cube's local axes are its columns.
+struct Rotation {
+    double m[3][3];
+    const double* operator[](int r) const { return m[r]; }
+};
+Rotation eulerRotation(double ax, double ay, double az) {
+    const double cx = std::cos(ax), sx = std::sin(ax), cy = std::cos(ay), sy = std::sin(ay), cz = std::cos(az), sz = std::sin(az);
+    return {{{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
+             {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
+             {-sy, cy * sx, cy * cx}}};
+}
+
 const Box3 kBox{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
 constexpr double kH = 0.1;
 
@@ -223,12 +235,7 @@ TEST_CASE("20 spikes on an 80^3 lattice: every tip is present") {
 }
 
 TEST_CASE("a rotated cube on a coarse lattice keeps its corners exactly and its edges closer than marching cubes") {
-    // Rotation from Euler angles, the cube's local coordinates as rows.
-    const double ax = 0.3, ay = 0.5, az = 0.7;
-    const double cx = std::cos(ax), sx = std::sin(ax), cy = std::cos(ay), sy = std::sin(ay), cz = std::cos(az), sz = std::sin(az);
-    const double R[3][3] = {{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
-                            {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
-                            {-sy, cy * sx, cy * cx}};
+    const Rotation R = eulerRotation(0.3, 0.5, 0.7);
     const Vec3d c(0.013, 0.021, -0.017);
     std::string f = "max(";
     for (int i = 0; i < 3; ++i) f += (i ? ",abs" : "abs") + dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
@@ -276,11 +283,7 @@ TEST_CASE("on a grid at its own voxel size, skipping cells whose corner gradient
     // A rotated, slightly rounded cube and a smooth ball as level-set grids meshed at their voxel
     // size: crossing normals come from interpolated node gradients, and the sharp pass visits
     // only the cells the gradients leave open. The result must be exactly that of visiting all.
-    const double ax = 0.4, ay = 0.2, az = 0.9;
-    const double cx = std::cos(ax), sx = std::sin(ax), cy = std::cos(ay), sy = std::sin(ay), cz = std::cos(az), sz = std::sin(az);
-    const double R[3][3] = {{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
-                            {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
-                            {-sy, cy * sx, cy * cx}};
+    const Rotation R = eulerRotation(0.4, 0.2, 0.9);
     auto cube = [&](const Vec3d& p) {
         double d = -INFINITY;
         for (int i = 0; i < 3; ++i) d = std::max(d, std::fabs(R[0][i] * p.x + R[1][i] * p.y + R[2][i] * p.z));
