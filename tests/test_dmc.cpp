@@ -135,7 +135,7 @@ TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide ar
                     truth.push_back(c + n * t + (a * std::cos(phi) + b * std::sin(phi)) * (width / 2));
                 }
                 const Mesh m = meshFormula(f, kBox, kH);
-                INFO("rod of width " << width / kH << " H, axis " << n.x << " " << n.y << " " << n.z);
+                INFO("rod of width " << width / kH << " H, axis " << n.x << " " << n.y << " " << n.z << ", centre " << num(c.x) << num(c.y) << num(c.z));
                 requireClosed(m);
                 CHECK(countComponents(m) <= 2);
                 CHECK(coverage(m, truth, kH) >= 0.99);
@@ -319,6 +319,25 @@ TEST_CASE("on a grid at its own voxel size, skipping cells whose corner gradient
         // resolution, are not: see the closing note of issue 4); the ball has no feature.
         if (shape == 1) CHECK(stats[0].nodesOnEdges >= 50);
         else CHECK(stats[0].nodesOnCorners + stats[0].nodesOnEdges == 0);
+    }
+}
+
+TEST_CASE("two balls touching exactly at a lattice node stay two vertex-manifold pieces") {
+    // The node between them has the iso value itself: every edge at it crosses there, and the
+    // welded vertex would join two separate fans. Each fan gets its own copy instead.
+    const std::string f = "min(sqrt((x+0.3)^2+y^2+z^2)-0.3, sqrt((x-0.3)^2+y^2+z^2)-0.3)";
+    const Box3 box{{-1, -1, -1}, {1, 1, 1}};
+    for (MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
+        const Mesh m = meshFormula(f, box, 0.1, method);
+        INFO(methodName(method));
+        const MeshTopology t = checkTopology(m);
+        CHECK(t.nonManifoldVertices == 0);
+        requireClosed(m);
+        CHECK(countComponents(m) == 2);
+        // Both copies of the touching point are there, one per ball.
+        std::size_t atOrigin = 0;
+        for (const Vec3f& p : m.points) atOrigin += length(Vec3d(p)) < 1e-9;
+        CHECK(atOrigin == 2);
     }
 }
 

@@ -6,6 +6,7 @@
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/leaf_nodes.h"
 #include "vdbsurf/dmc/node_gradients.h"
+#include "vdbsurf/mesh/vertex_fans.h"
 
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/parallel_for.h>
@@ -406,6 +407,12 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
         mesh.indices = std::move(indices);
         stats.weldedVertices = welded;
         stats.collapsedPolygons = collapsed;
+        // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
+        // feature node between two fans) gets one vertex per fan: the mesh stays vertex-manifold.
+        std::vector<std::uint32_t> welds;
+        for (std::size_t v = 0; v < isRep.size(); ++v)
+            if (isRep[v] && newId[v] != UINT32_MAX) welds.push_back(newId[v]);
+        stats.splitVertices = splitFansAt(mesh, std::move(welds));
         return;
     }
 }

@@ -10,7 +10,8 @@
 // field along the (deformed) edge. Normals likewise: interpolated node gradients where the field
 // is linear along undeformed edges, else the field's gradient. A node whose value is exactly the iso value (data, or a node
 // placed on a sharp feature) carries the crossings of all its edges; those vertices are welded
-// into one and the polygons that collapse are removed, so there are no slivers and no cracks.
+// into one and the polygons that collapse are removed, so there are no slivers and no cracks;
+// where separate fans of polygons meet at such a node, each further fan gets its own copy.
 #pragma once
 #include "vdbsurf/field/field.h"
 #include "vdbsurf/lattice/lattice.h"
@@ -39,6 +40,7 @@ struct SurfaceStats {
     std::uint64_t leaves = 0;
     std::uint64_t weldedVertices = 0;
     std::uint64_t collapsedPolygons = 0;
+    std::uint64_t splitVertices = 0; // welded nodes given one copy per further fan of polygons
     double seconds = 0;
 };
 

@@ -120,6 +120,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.cellsWithSurface = surface->stats().cellsWithSurface;
     report.weldedVertices = surface->stats().weldedVertices;
     report.collapsedPolygons = surface->stats().collapsedPolygons;
+    report.splitVertices = surface->stats().splitVertices;
     report.secondsMesh = surface->stats().seconds;
 
     if (mesh.empty()) {

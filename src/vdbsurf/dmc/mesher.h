@@ -48,7 +48,7 @@ struct MeshReport {
     std::uint64_t cellsExamined = 0, cellsActive = 0, cellsWithSurface = 0;
     std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;
     std::uint64_t sharpEdgeCells = 0, sharpCornerCells = 0, sharpRejected = 0, nodesOnEdges = 0, nodesOnCorners = 0;
-    std::uint64_t weldedVertices = 0, collapsedPolygons = 0;
+    std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
     double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0;
     std::size_t vertices = 0, triangles = 0, quads = 0, otherPolygons = 0;
 };

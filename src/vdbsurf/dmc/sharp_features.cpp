@@ -25,6 +25,11 @@ namespace {
 // Normals closer to opposite than this (|n_a × n_b| below it) belong to two sheets of a thin
 // part rather than to the two faces of an edge.
 constexpr double kMinSine = 0.25;
+// How deep (in cells) the solid behind an edge or corner must reach for it to be a feature.
+constexpr double kMinThickness = 1.0;
+// Two crossing normals of one cell closer to opposite than this (cosine) are the two sides of a
+// thin part (a rod, a plate) inside the cell.
+constexpr double kOppositeSheets = 0.9;
 // A feature point farther than this from the surface (in cells, estimated as |f - iso| / |∇f|)
 // is an artefact of curvature or of sampling, not a feature.
 constexpr double kMaxSurfaceDistance = 0.2;
@@ -105,6 +110,16 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return true;
     };
 
+    // An edge or corner belongs to a solid thicker than a fraction of a cell: a little way in
+    // along the mean of its faces' outward normals is still inside (convex and concave alike).
+    // Across a rod or plate thinner than that the normals turn as fast as at an edge, the
+    // feature tests above pass, and a node placed there would pinch the part.
+    auto solidBehind = [&](const Vec3d& feature, const Vec3d& outward) {
+        const double len = length(outward);
+        if (!(len > 1e-9)) return false;
+        return isInside(field.value(feature - outward * (kMinThickness * h / len)), iso, side);
+    };
+
     // Cells whose corner gradients rule out an edge below the surface's sharpEdgeCosine (the
     // mesher sets it to options.edgeThreshold) are skipped without gathering their crossings.
     surface.forEachSurfaceCell([&](const CellCrossings& cc) {
@@ -121,12 +136,22 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         }
         int a = -1, b = -1;
         double theta = options.edgeThreshold;
+        bool twoSheets = false;
         for (int i = 0; i < count; ++i)
             for (int j = i + 1; j < count; ++j) {
                 const double d = dot(n[i], n[j]);
                 if (d < theta && length(cross(n[i], n[j])) >= kMinSine) theta = d, a = i, b = j;
+                twoSheets = twoSheets || d <= -kOppositeSheets;
             }
         if (a < 0) return;
+        // Two sheets facing away from each other within one cell: a thin part (rod, plate)
+        // passes here, and what its curvature makes of the normals is no feature. A node placed
+        // on it would pinch the part (a thin rod into beads touching at points). (Nodes the thin
+        // search moved are not a sign: it also moves nodes next to a convex corner's tip.)
+        if (twoSheets) {
+            ++local.rejected;
+            return;
+        }
         const Vec3d edgeDir = normalized(cross(n[a], n[b]));
         int third = -1;
         double phi = options.cornerThreshold;
@@ -155,7 +180,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const double rhs[3] = {dot(n[a], c[a]), dot(n[b], c[b]), dot(n[third], c[third])};
             Vec3d corner;
             if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner) ||
-                !facesFlat(corner, {c[a], c[b], c[third]})) {
+                !facesFlat(corner, {c[a], c[b], c[third]}) || !solidBehind(corner, n[a] + n[b] + n[third])) {
                 ++local.rejected;
                 return;
             }
@@ -187,7 +212,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 p.point = q;
                 p.distance = dist;
             }
-            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[a], c[b]})) {
+            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[a], c[b]}) || !solidBehind(p.point, n[a] + n[b])) {
                 ++local.rejected;
                 return;
             }

@@ -1,5 +1,7 @@
 #include "vdbsurf/mesh/mesh_check.h"
 
+#include "vdbsurf/mesh/vertex_fans.h"
+
 #include <algorithm>
 #include <numeric>
 #include <vector>
@@ -40,6 +42,11 @@ MeshTopology checkTopology(const Mesh& mesh) {
         i = j;
     }
     t.unusedVertices = std::size_t(std::count(used.begin(), used.end(), 0));
+    if (t.nonManifoldEdges == 0) { // fans are only defined around manifold edges
+        std::vector<std::uint32_t> all(mesh.points.size());
+        std::iota(all.begin(), all.end(), 0u);
+        t.nonManifoldVertices = countSplitFans(mesh, std::move(all));
+    }
     return t;
 }
 

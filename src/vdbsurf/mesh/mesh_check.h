@@ -14,7 +14,10 @@ struct MeshTopology {
     std::size_t inconsistentEdges = 0;  // two polygons traverse it in the same direction
     std::size_t degeneratePolygons = 0; // repeated vertex index
     std::size_t unusedVertices = 0;
-    bool closedManifoldOriented() const { return boundaryEdges == 0 && nonManifoldEdges == 0 && inconsistentEdges == 0; }
+    std::size_t nonManifoldVertices = 0; // where several fans of polygons meet at one vertex
+    bool closedManifoldOriented() const {
+        return boundaryEdges == 0 && nonManifoldEdges == 0 && inconsistentEdges == 0 && nonManifoldVertices == 0;
+    }
 };
 
 MeshTopology checkTopology(const Mesh& mesh);

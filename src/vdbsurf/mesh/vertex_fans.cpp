@@ -4,6 +4,7 @@
 #include "vdbsurf/core/union_find.h"
 
 #include <tbb/blocked_range.h>
+#include <algorithm>
 #include <tbb/parallel_for.h>
 
 namespace vdbsurf {
@@ -74,6 +75,93 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
         }
     }
     return copiesOf;
+}
+
+namespace {
+
+// Calls extra(candidate, corner, fan) for every corner at a candidate vertex that is not in the
+// fan of the vertex's first corner (fan: 1, 2, ... per further fan, in polygon order).
+template <typename F>
+void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidates, F&& extra) {
+    std::sort(candidates.begin(), candidates.end());
+    candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+    if (candidates.empty()) return;
+    constexpr std::uint32_t kNone = ~0u;
+    std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
+    for (std::uint32_t i = 0; i < candidates.size(); ++i) slot[candidates[i]] = i;
+    // The corners at each candidate with their polygon neighbours, in polygon order.
+    struct Corner {
+        std::uint32_t corner, prev, next;
+    };
+    std::vector<std::vector<Corner>> at(candidates.size());
+    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
+        const std::uint32_t first = mesh.offsets[f], n = mesh.polygonSize(f);
+        for (std::uint32_t k = 0; k < n; ++k) {
+            const std::uint32_t s = slot[mesh.indices[first + k]];
+            if (s == kNone) continue;
+            at[s].push_back({first + k, mesh.indices[first + (k + n - 1) % n], mesh.indices[first + (k + 1) % n]});
+        }
+    }
+    std::vector<std::uint32_t> parent, fanOfRoot;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> byNeighbour; // (neighbour vertex, corner slot)
+    for (std::size_t s = 0; s < candidates.size(); ++s) {
+        const std::vector<Corner>& corners = at[s];
+        if (corners.size() < 2) continue;
+        // Corners sharing an edge at the vertex (a neighbour vertex) are in one fan.
+        parent.resize(corners.size());
+        for (std::uint32_t i = 0; i < corners.size(); ++i) parent[i] = i;
+        auto find = [&](std::uint32_t x) {
+            while (parent[x] != x) x = parent[x] = parent[parent[x]];
+            return x;
+        };
+        byNeighbour.clear();
+        for (std::uint32_t i = 0; i < corners.size(); ++i) {
+            byNeighbour.emplace_back(corners[i].prev, i);
+            byNeighbour.emplace_back(corners[i].next, i);
+        }
+        std::sort(byNeighbour.begin(), byNeighbour.end());
+        for (std::size_t i = 1; i < byNeighbour.size(); ++i)
+            if (byNeighbour[i].first == byNeighbour[i - 1].first) {
+                const std::uint32_t a = find(byNeighbour[i].second), b = find(byNeighbour[i - 1].second);
+                if (a != b) parent[std::max(a, b)] = std::min(a, b); // a fan's root is its first corner
+            }
+        fanOfRoot.assign(corners.size(), 0);
+        std::uint32_t fans = 0;
+        for (std::uint32_t i = 0; i < corners.size(); ++i) {
+            const std::uint32_t r = find(i);
+            if (r == 0) continue;
+            if (fanOfRoot[r] == 0) fanOfRoot[r] = ++fans;
+            extra(candidates[s], corners[i].corner, fanOfRoot[r]);
+        }
+    }
+}
+
+} // namespace
+
+std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates) {
+    std::size_t copies = 0;
+    std::uint32_t lastVertex = ~0u, lastFan = 0, firstCopy = 0;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> rewrite; // (corner, new vertex)
+    forEachExtraFanCorner(mesh, std::move(candidates), [&](std::uint32_t v, std::uint32_t corner, std::uint32_t fan) {
+        if (v != lastVertex) lastVertex = v, lastFan = 0, firstCopy = std::uint32_t(mesh.points.size());
+        if (fan > lastFan) { // fans are numbered in order of first appearance
+            mesh.points.push_back(mesh.points[v]);
+            lastFan = fan;
+            ++copies;
+        }
+        rewrite.emplace_back(corner, firstCopy + fan - 1);
+    });
+    for (const auto& [corner, vertex] : rewrite) mesh.indices[corner] = vertex;
+    return copies;
+}
+
+std::size_t countSplitFans(const Mesh& mesh, std::vector<std::uint32_t> candidates) {
+    std::size_t count = 0;
+    std::uint32_t lastVertex = ~0u;
+    forEachExtraFanCorner(mesh, std::move(candidates), [&](std::uint32_t v, std::uint32_t, std::uint32_t) {
+        if (v != lastVertex) ++count, lastVertex = v;
+    });
+    return count;
 }
 
 } // namespace vdbsurf

@@ -22,4 +22,13 @@ std::vector<std::uint32_t> nextCorners(const std::vector<std::uint32_t>& offsets
 std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& inputName, std::vector<std::uint32_t>& cornerVertex,
                                            std::vector<std::uint32_t>& partner);
 
+// Vertices among `candidates` where several fans of polygons meet (edge-manifold surfaces that
+// touch at a point) get one copy per further fan, appended to points, so the mesh becomes
+// vertex-manifold; the fan holding the vertex's first corner in polygon order keeps it, so the
+// result is deterministic. Returns the number of copies made.
+std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates);
+
+// How many of `candidates` have more than one fan (what splitFansAt would split).
+std::size_t countSplitFans(const Mesh& mesh, std::vector<std::uint32_t> candidates);
+
 } // namespace vdbsurf
