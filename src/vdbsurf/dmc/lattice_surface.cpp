@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <map>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -74,6 +75,44 @@ std::uint32_t loopIndices(std::uint32_t k, bool triangulate) { return k == 4 ? (
 struct VertexRef {
     std::uint32_t leaf, local;
 };
+
+// Two polygons through the same vertices in opposite orders (two cells whose surfaces collapsed
+// onto the same welded nodes) enclose nothing: together they are a closed zero-volume pillow.
+// Both are dropped; on an edge-manifold surface (call it only on one) their edges belong to them
+// alone, so nothing is left open. Only polygons at a welded vertex (`welded`) can form one. Returns polygons dropped.
+std::uint64_t dropReversedPairs(std::vector<std::uint32_t>& offsets, std::vector<std::uint32_t>& indices,
+                                const std::vector<std::uint8_t>& welded) {
+    std::map<std::vector<std::uint32_t>, std::uint32_t> seen; // polygon rotated to its lowest vertex -> polygon
+    std::vector<std::uint8_t> drop(offsets.size() - 1, 0);
+    std::uint64_t dropped = 0;
+    std::vector<std::uint32_t> key;
+    for (std::uint32_t f = 0; f + 1 < offsets.size(); ++f) {
+        const auto first = indices.begin() + offsets[f], last = indices.begin() + offsets[f + 1];
+        if (std::none_of(first, last, [&](std::uint32_t v) { return welded[v] != 0; })) continue;
+        key.assign(first, last);
+        std::rotate(key.begin(), std::min_element(key.begin(), key.end()), key.end());
+        std::vector<std::uint32_t> reversed(key.rbegin(), key.rend());
+        std::rotate(reversed.begin(), std::min_element(reversed.begin(), reversed.end()), reversed.end());
+        const auto it = seen.find(reversed);
+        if (it != seen.end() && !drop[it->second]) {
+            drop[it->second] = drop[f] = 1;
+            dropped += 2;
+            seen.erase(it);
+            continue;
+        }
+        seen.emplace(key, f);
+    }
+    if (dropped == 0) return 0;
+    std::vector<std::uint32_t> keptOffsets{0}, keptIndices;
+    for (std::uint32_t f = 0; f + 1 < offsets.size(); ++f) {
+        if (drop[f]) continue;
+        keptIndices.insert(keptIndices.end(), indices.begin() + offsets[f], indices.begin() + offsets[f + 1]);
+        keptOffsets.push_back(std::uint32_t(keptIndices.size()));
+    }
+    offsets = std::move(keptOffsets);
+    indices = std::move(keptIndices);
+    return dropped;
+}
 
 } // namespace
 
@@ -390,6 +429,8 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
         }
         if (bad && attempt < 8) continue;
         if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
+        // Edge-manifold now, so a reversed pair is a closed piece of its own.
+        collapsed += dropReversedPairs(offsets, indices, isRep);
 
         std::vector<std::uint32_t> newId(mesh.points.size(), UINT32_MAX);
         for (std::uint32_t v : indices) newId[v] = 0;

@@ -6,7 +6,10 @@
 // cell Ω holds the point (or, for an edge, its projection onto the line) moves onto it.
 //
 // Rules the paper leaves open, chosen so that the result does not depend on thread order:
-// - normal pairs that are nearly opposite are two sheets of a thin part, not an edge;
+// - normal pairs that are nearly opposite are two sheets of a thin part, not an edge, and a cell
+//   holding such a pair proposes nothing (the normals of a rod or plate turn as fast as at an
+//   edge); nor does a feature with less than a cell of solid behind it (along the mean of its
+//   faces' outward normals), which would pinch a thin part into beads;
 // - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
 //   the field and its gradient) exceeds a fifth of a cell, is rejected;
 // - a node the thin search moved, or whose six neighbours all lie on the other side, stays put:
