@@ -14,7 +14,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <map>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -78,40 +77,36 @@ struct VertexRef {
 
 // Two polygons through the same vertices in opposite orders (two cells whose surfaces collapsed
 // onto the same welded nodes) enclose nothing: together they are a closed zero-volume pillow.
-// Both are dropped; on an edge-manifold surface (call it only on one) their edges belong to them
-// alone, so nothing is left open. Only polygons at a welded vertex (`welded`) can form one. Returns polygons dropped.
-std::uint64_t dropReversedPairs(std::vector<std::uint32_t>& offsets, std::vector<std::uint32_t>& indices,
-                                const std::vector<std::uint8_t>& welded) {
-    std::map<std::vector<std::uint32_t>, std::uint32_t> seen; // polygon rotated to its lowest vertex -> polygon
-    std::vector<std::uint8_t> drop(offsets.size() - 1, 0);
-    std::uint64_t dropped = 0;
-    std::vector<std::uint32_t> key;
+// Marks both (drop[f] = 1); on an edge-manifold surface (call it only on one) their edges belong
+// to them alone, so dropping them leaves nothing open. Only polygons at a welded vertex
+// (`welded`) can form one. Returns the number marked.
+std::uint64_t markReversedPairs(const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
+                                const std::vector<std::uint8_t>& welded, std::vector<std::uint8_t>& drop) {
+    drop.assign(offsets.size() - 1, 0);
+    // (polygon rotated to its lowest vertex, polygon), sorted: a reversed twin is found by search.
+    std::vector<std::pair<std::vector<std::uint32_t>, std::uint32_t>> keyed;
     for (std::uint32_t f = 0; f + 1 < offsets.size(); ++f) {
         const auto first = indices.begin() + offsets[f], last = indices.begin() + offsets[f + 1];
         if (std::none_of(first, last, [&](std::uint32_t v) { return welded[v] != 0; })) continue;
-        key.assign(first, last);
+        std::vector<std::uint32_t> key(first, last);
         std::rotate(key.begin(), std::min_element(key.begin(), key.end()), key.end());
+        keyed.emplace_back(std::move(key), f);
+    }
+    std::sort(keyed.begin(), keyed.end());
+    std::uint64_t marked = 0;
+    for (const auto& [key, f] : keyed) {
+        if (drop[f]) continue;
         std::vector<std::uint32_t> reversed(key.rbegin(), key.rend());
         std::rotate(reversed.begin(), std::min_element(reversed.begin(), reversed.end()), reversed.end());
-        const auto it = seen.find(reversed);
-        if (it != seen.end() && !drop[it->second]) {
-            drop[it->second] = drop[f] = 1;
-            dropped += 2;
-            seen.erase(it);
-            continue;
-        }
-        seen.emplace(key, f);
+        auto it = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(reversed, std::uint32_t(0)));
+        for (; it != keyed.end() && it->first == reversed; ++it)
+            if (it->second != f && !drop[it->second]) {
+                drop[f] = drop[it->second] = 1;
+                marked += 2;
+                break;
+            }
     }
-    if (dropped == 0) return 0;
-    std::vector<std::uint32_t> keptOffsets{0}, keptIndices;
-    for (std::uint32_t f = 0; f + 1 < offsets.size(); ++f) {
-        if (drop[f]) continue;
-        keptIndices.insert(keptIndices.end(), indices.begin() + offsets[f], indices.begin() + offsets[f + 1]);
-        keptOffsets.push_back(std::uint32_t(keptIndices.size()));
-    }
-    offsets = std::move(keptOffsets);
-    indices = std::move(keptIndices);
-    return dropped;
+    return marked;
 }
 
 } // namespace
@@ -347,11 +342,22 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
 
     std::unordered_map<Coord, std::uint32_t> representative;
     for (const auto& [v, node] : atNode) representative.emplace(node, v);
+    // Only polygons through a vertex on a node can change: the attempts below redo just those.
+    std::vector<std::uint8_t> onNode(mesh.points.size(), 0);
+    for (const auto& [v, node] : atNode) onNode[v] = 1;
+    std::vector<std::uint32_t> candidates;
+    for (std::uint32_t f = 0; f + 1 < mesh.offsets.size(); ++f)
+        for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i)
+            if (onNode[mesh.indices[i]]) {
+                candidates.push_back(f);
+                break;
+            }
+    std::vector<std::uint32_t> remap(mesh.points.size());
+    for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
+    std::vector<std::uint8_t> isRep(mesh.points.size(), 0);
     std::unordered_map<Coord, bool> keepApart;
     for (int attempt = 0;; ++attempt) {
-        std::vector<std::uint32_t> remap(mesh.points.size());
-        for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
-        std::vector<std::uint8_t> isRep(mesh.points.size(), 0);
+        for (const auto& [v, node] : atNode) remap[v] = v, isRep[representative.at(node)] = 0;
         std::unordered_map<std::uint32_t, Coord> nodeOfRep;
         std::uint64_t welded = 0;
         for (const auto& [v, node] : atNode) {
@@ -366,9 +372,8 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
         }
         if (welded == 0) return;
 
-        std::vector<std::uint32_t> offsets{0}, indices;
-        offsets.reserve(mesh.offsets.size());
-        indices.reserve(mesh.indices.size());
+        // The candidates' polygons after welding: loops [first[k], first[k + 1]) of (offsets, indices).
+        std::vector<std::uint32_t> offsets{0}, indices, first{0};
         std::uint64_t collapsed = 0;
         std::vector<std::uint32_t> poly;
         auto emitLoop = [&](auto&& self, const std::vector<std::uint32_t>& loop) -> void {
@@ -393,20 +398,15 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
             indices.insert(indices.end(), clean.begin(), clean.end());
             offsets.push_back(std::uint32_t(indices.size()));
         };
-        for (std::size_t f = 0; f + 1 < mesh.offsets.size(); ++f) {
-            bool touched = false;
-            for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1] && !touched; ++i) touched = remap[mesh.indices[i]] != mesh.indices[i];
-            if (!touched) { // most polygons: copied as they are
-                indices.insert(indices.end(), mesh.indices.begin() + mesh.offsets[f], mesh.indices.begin() + mesh.offsets[f + 1]);
-                offsets.push_back(std::uint32_t(indices.size()));
-                continue;
-            }
+        for (const std::uint32_t f : candidates) {
             poly.clear();
             for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) poly.push_back(remap[mesh.indices[i]]);
             emitLoop(emitLoop, poly);
+            first.push_back(std::uint32_t(offsets.size() - 1));
         }
 
-        // Only edges at a welded vertex can have become shared by more than two polygons.
+        // Only edges at a welded vertex can have become shared by more than two polygons, and
+        // every polygon with such an edge is a candidate.
         std::vector<std::pair<std::uint64_t, int>> edges; // (undirected key, direction)
         for (std::size_t f = 0; f + 1 < offsets.size(); ++f)
             for (std::uint32_t i = offsets[f]; i < offsets[f + 1]; ++i) {
@@ -430,10 +430,29 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
         if (bad && attempt < 8) continue;
         if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
         // Edge-manifold now, so a reversed pair is a closed piece of its own.
-        collapsed += dropReversedPairs(offsets, indices, isRep);
+        std::vector<std::uint8_t> pillow;
+        collapsed += markReversedPairs(offsets, indices, isRep, pillow);
+        // The whole mesh in polygon order: candidates replaced by their loops.
+        std::vector<std::uint32_t> allOffsets{0}, allIndices;
+        allOffsets.reserve(mesh.offsets.size());
+        allIndices.reserve(mesh.indices.size());
+        std::size_t k = 0;
+        for (std::uint32_t f = 0; f + 1 < mesh.offsets.size(); ++f) {
+            if (k < candidates.size() && candidates[k] == f) {
+                for (std::uint32_t l = first[k]; l < first[k + 1]; ++l) {
+                    if (pillow[l]) continue;
+                    allIndices.insert(allIndices.end(), indices.begin() + offsets[l], indices.begin() + offsets[l + 1]);
+                    allOffsets.push_back(std::uint32_t(allIndices.size()));
+                }
+                ++k;
+                continue;
+            }
+            allIndices.insert(allIndices.end(), mesh.indices.begin() + mesh.offsets[f], mesh.indices.begin() + mesh.offsets[f + 1]);
+            allOffsets.push_back(std::uint32_t(allIndices.size()));
+        }
 
         std::vector<std::uint32_t> newId(mesh.points.size(), UINT32_MAX);
-        for (std::uint32_t v : indices) newId[v] = 0;
+        for (std::uint32_t v : allIndices) newId[v] = 0;
         std::uint32_t next = 0;
         std::vector<Vec3f> points;
         points.reserve(mesh.points.size() - welded);
@@ -442,10 +461,10 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
                 newId[v] = next++;
                 points.push_back(mesh.points[v]);
             }
-        for (std::uint32_t& v : indices) v = newId[v];
+        for (std::uint32_t& v : allIndices) v = newId[v];
         mesh.points = std::move(points);
-        mesh.offsets = std::move(offsets);
-        mesh.indices = std::move(indices);
+        mesh.offsets = std::move(allOffsets);
+        mesh.indices = std::move(allIndices);
         stats.weldedVertices = welded;
         stats.collapsedPolygons = collapsed;
         // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
