@@ -169,6 +169,7 @@ void runMesh(const MeshOptions& o) {
                            {"sharp_rejected", rep.sharpRejected},
                            {"nodes_on_edges", rep.nodesOnEdges},
                            {"nodes_on_corners", rep.nodesOnCorners},
+                           {"nodes_flipped", rep.nodesFlipped},
                            {"welded_vertices", rep.weldedVertices},
                            {"collapsed_polygons", rep.collapsedPolygons},
                            {"split_vertices", rep.splitVertices}}},

@@ -127,12 +127,16 @@ struct LatticeSurface::Impl {
         : field(f), lattice(l), deformation(d && !d->empty() ? d : nullptr), options(o),
           linear(f.edgesAreLinear(l.frame)), leafManager(*l.cells), start(std::chrono::steady_clock::now()) {}
 
-    void firstPass();
+    // Leaf pointer -> index in leafManager order, for each leaf's neighbour table.
+    std::unordered_map<const MaskLeaf*, std::int32_t> indexOf;
+
+    // All leaves, or only those listed (their work is recomputed from scratch).
+    void firstPass(const std::vector<std::size_t>* only = nullptr);
     VertexRef vertexOf(const LeafWork& w, const Coord& cell, int e) const;
     void weldNodeVertices(Mesh& mesh);
 };
 
-void LatticeSurface::Impl::firstPass() {
+void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
     const double iso = options.iso;
     const Inside side = field.inside();
     const LatticeFrame& frame = lattice.frame;
@@ -142,14 +146,17 @@ void LatticeSurface::Impl::firstPass() {
     const double outward = side == Inside::Below ? 1.0 : -1.0;
 
     const std::size_t leafCount = leafManager.leafCount();
-    work.resize(leafCount);
-    std::unordered_map<const MaskLeaf*, std::int32_t> indexOf;
-    indexOf.reserve(leafCount * 2);
-    for (std::size_t i = 0; i < leafCount; ++i) indexOf.emplace(&leafManager.leaf(i), std::int32_t(i));
+    if (!only) {
+        work.resize(leafCount);
+        indexOf.clear();
+        indexOf.reserve(leafCount * 2);
+        for (std::size_t i = 0; i < leafCount; ++i) indexOf.emplace(&leafManager.leaf(i), std::int32_t(i));
+    }
+    const std::size_t tasks = only ? only->size() : leafCount;
 
-    Progress progress("surface crossings", leafCount, options.cancel);
+    Progress progress("surface crossings", tasks, options.cancel);
 
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 8), [&](const tbb::blocked_range<std::size_t>& r) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tasks, 8), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*lattice.cells);
         std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>> offsetAcc;
         std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>> surfaceAcc, insideAcc;
@@ -164,9 +171,11 @@ void LatticeSurface::Impl::firstPass() {
         std::array<std::uint8_t, kLeafNodeCount> moved;
         std::array<Vec3f, kLeafNodeCount> offsets;
         NodeGradients gradients;
-        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+        for (std::size_t task = r.begin(); task < r.end(); ++task) {
+            const std::size_t li = only ? (*only)[task] : task;
             const MaskLeaf& leaf = leafManager.leaf(li);
             LeafWork& w = work[li];
+            if (only) w = LeafWork();
             w.origin = leaf.origin();
             const auto& mask = leaf.getValueMask();
             std::uint16_t running = 0;
@@ -305,6 +314,7 @@ void LatticeSurface::Impl::firstPass() {
     });
     if (options.cancel) options.cancel->check();
     stats.leaves = leafCount;
+    stats.cellsWithSurface = 0;
     for (const LeafWork& w : work) stats.cellsWithSurface += w.cellsWithSurface;
 }
 
@@ -518,6 +528,57 @@ void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCross
         }
     });
     if (im.options.cancel) im.options.cancel->check();
+}
+
+void LatticeSurface::rebuildAround(const std::vector<Vec3i>& nodes, const LatticeDeformation& deformation) {
+    Impl& im = *mImpl;
+    if (im.meshTaken) throw std::logic_error("LatticeSurface: rebuilt after the mesh was taken");
+    // The lattice may have gained cells around moved nodes, some in new leaves: carry the work
+    // of every leaf that existed over to the new leaf order; new leaves start empty.
+    std::unordered_map<Coord, std::size_t> oldIndex;
+    oldIndex.reserve(im.work.size() * 2);
+    for (std::size_t li = 0; li < im.work.size(); ++li) oldIndex.emplace(im.work[li].origin, li);
+    im.leafManager.rebuild();
+    const std::size_t leafCount = im.leafManager.leafCount();
+    std::vector<LeafWork> work(leafCount);
+    std::vector<std::uint8_t> isDirty(leafCount, 0);
+    im.indexOf.clear();
+    im.indexOf.reserve(leafCount * 2);
+    for (std::size_t li = 0; li < leafCount; ++li) {
+        const MaskLeaf& leaf = im.leafManager.leaf(li);
+        im.indexOf.emplace(&leaf, std::int32_t(li));
+        const auto it = oldIndex.find(leaf.origin());
+        if (it == oldIndex.end()) isDirty[li] = 1;
+        else work[li] = std::move(im.work[it->second]);
+        // A leaf that gained cells has new cell ranks.
+        if (leaf.onVoxelCount() != work[li].config.size()) isDirty[li] = 1;
+    }
+    im.work = std::move(work);
+    for (const Vec3i& n : nodes)
+        for (int d = 0; d < 8; ++d) {
+            const Coord cell(n.x - (d & 1), n.y - ((d >> 1) & 1), n.z - ((d >> 2) & 1));
+            if (!im.lattice.cellRange.isInside(cell)) continue;
+            if (const MaskLeaf* leaf = im.lattice.cells->probeConstLeaf(cell)) isDirty[std::size_t(im.indexOf.at(leaf))] = 1;
+        }
+    std::vector<std::size_t> dirty;
+    for (std::size_t li = 0; li < leafCount; ++li)
+        if (isDirty[li]) dirty.push_back(li);
+    // Neighbour tables hold leaf indices, which moved: the clean leaves' are renewed here, the
+    // dirty leaves' by the first pass.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*im.lattice.cells);
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            if (isDirty[li]) continue;
+            LeafWork& w = im.work[li];
+            for (int d = 0; d < 8; ++d) {
+                const MaskLeaf* nb = acc.probeConstLeaf(w.origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1)));
+                w.neighbor[std::size_t(d)] = nb ? im.indexOf.at(nb) : -1;
+            }
+        }
+    });
+    im.deformation = deformation.empty() ? nullptr : &deformation;
+    im.options.normals = false; // the sharp pass, their only reader, is done
+    im.firstPass(&dirty);
 }
 
 std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformation& deformation) {

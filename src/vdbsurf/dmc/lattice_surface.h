@@ -19,6 +19,7 @@
 
 #include <functional>
 #include <memory>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -65,6 +66,13 @@ public:
     // Calls fn for every cell with surface, in parallel (fn must be thread-safe); with
     // onlySharpCandidates, skips the cells that cannot hold a sharp edge (SurfaceOptions).
     void forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn, bool onlySharpCandidates = false) const;
+
+    // After the sharp pass flipped nodes to the other side (and bridged them; `nodes` lists both)
+    // and the lattice gained the cells around moved nodes: recomputes, with `deformation`, the
+    // leaves holding cells at those nodes and the leaves that gained cells (new leaves among
+    // them), as a new surface would. Follow it with moveCrossingsToFeatureNodes for the feature
+    // nodes elsewhere.
+    void rebuildAround(const std::vector<Vec3i>& nodes, const LatticeDeformation& deformation);
 
     // After nodes were placed on sharp features (deformation.onSurface; each keeps its side, so
     // no cell case changes): the crossing on every edge of such a node becomes the node itself.

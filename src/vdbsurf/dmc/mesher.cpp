@@ -100,11 +100,17 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         placeSharpFeatures(field, lattice, *surface, sh, deformation, &ss);
         const auto t = std::chrono::steady_clock::now();
         if (ss.flipped > 0) {
-            // Nodes changed side: cell cases changed, so the surface is built again.
+            // Nodes changed side: cell cases changed around them. The leaves there are computed
+            // again (or, for tests, the whole surface).
             activateCellsAroundMovedNodes(lattice, deformation);
-            so.normals = false;
-            surface.reset();
-            surface = std::make_unique<LatticeSurface>(field, lattice, &deformation, so);
+            if (request.patchAfterFlips) {
+                surface->rebuildAround(ss.changedNodes, deformation);
+                surface->moveCrossingsToFeatureNodes(deformation);
+            } else {
+                so.normals = false;
+                surface.reset();
+                surface = std::make_unique<LatticeSurface>(field, lattice, &deformation, so);
+            }
         } else {
             surface->moveCrossingsToFeatureNodes(deformation);
         }
@@ -113,6 +119,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.sharpRejected = ss.rejected;
         report.nodesOnEdges = ss.nodesOnEdges;
         report.nodesOnCorners = ss.nodesOnCorners;
+        report.nodesFlipped = ss.flipped;
         report.secondsSharp = ss.seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
     }
     if (request.deformedLattice) request.deformedLattice(lattice, deformation);

@@ -33,6 +33,9 @@ struct MeshRequest {
     bool sharp = true; // place nodes on sharp edges and corners
     int searchSteps = 5;
     double sharpEdge = 0.9, sharpCorner = 0.7;
+    // After nodes flip onto feature tips, recompute only the lattice leaves around them (false:
+    // build the whole surface again; same mesh, for tests).
+    bool patchAfterFlips = true;
     // Called with the deformed lattice before the final surface is built (--lattice-out).
     std::function<void(const Lattice&, const LatticeDeformation&)> deformedLattice;
     const CancelToken* cancel = nullptr;
@@ -49,6 +52,7 @@ struct MeshReport {
     std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;
     std::uint64_t sharpEdgeCells = 0, sharpCornerCells = 0, sharpRejected = 0, nodesOnEdges = 0, nodesOnCorners = 0;
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
+    std::uint64_t nodesFlipped = 0; // sharp-feature nodes that changed side onto a tip (cases changed around them)
     double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0;
     std::size_t vertices = 0, triangles = 0, quads = 0, otherPolygons = 0;
 };

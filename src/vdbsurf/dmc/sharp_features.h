@@ -20,6 +20,7 @@
 #include "vdbsurf/field/field.h"
 
 #include <cstdint>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -43,6 +44,8 @@ struct SharpStats {
     // Nodes that had no edge to the other side and changed side onto a feature's tip, and the
     // nodes moved to join them: when non-zero, cell cases changed and the surface is rebuilt.
     std::uint64_t flipped = 0, bridged = 0;
+    // The flipped and bridged nodes (sorted): the cells around them changed case.
+    std::vector<Vec3i> changedNodes;
     double seconds = 0;
 };
 
