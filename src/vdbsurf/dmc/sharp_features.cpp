@@ -10,6 +10,7 @@
 
 #include <Eigen/Dense>
 #include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
@@ -240,17 +241,29 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
     openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface);
     openvdb::tree::ValueAccessor<openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
-    double around[27];
+    // The field's side at each proposal's six neighbours does not depend on the order below:
+    // sampled first, in parallel (bit k: neighbour k of kNeighbours is inside).
+    constexpr int kNeighbours[6] = {4, 10, 12, 14, 16, 22}; // in the 3^3 block around the node
+    std::vector<std::uint8_t> insideNeighbours(all.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, all.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+        double around[27];
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+            const Coord& n = all[i].node;
+            field.sampleNodes(frame, Vec3i(n.x() - 1, n.y() - 1, n.z() - 1), {3, 3, 3}, nullptr, around);
+            for (int j = 0; j < 6; ++j)
+                if (isInside(around[kNeighbours[j]], iso, side)) insideNeighbours[i] |= std::uint8_t(1u << j);
+        }
+    });
+    if (options.cancel) options.cancel->check();
     std::vector<Vec3i> flipped;
     for (std::size_t i = 0; i < all.size(); ++i) {
         const Proposal& p = all[i];
-        if (options.cancel) options.cancel->check();
-        field.sampleNodes(frame, Vec3i(p.node.x() - 1, p.node.y() - 1, p.node.z() - 1), {3, 3, 3}, nullptr, around);
         int otherSide = 0;
         bool sharesCrossing = false; // with a node already on a feature: the edge's one vertex can't be at both
-        for (int k : {4, 10, 12, 14, 16, 22}) {
+        for (int j = 0; j < 6; ++j) {
+            const int k = kNeighbours[j];
             const Coord nb = p.node.offsetBy(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
-            bool inside = isInside(around[k], iso, side);
+            bool inside = (insideNeighbours[i] >> j) & 1u;
             if (onSurface.isValueOn(nb)) {
                 inside = insideOnSurface.isValueOn(nb);
                 sharesCrossing = sharesCrossing || inside != p.inside;
