@@ -1,10 +1,10 @@
 #include "support/test_support.h"
 
+#include "vdbsurf/vdb/level_set_from_distance.h"
 #include "vdbsurf/vdb/vdb_file.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/LevelSetSphere.h>
-#include <openvdb/tools/SignedFloodFill.h>
 
 #include <array>
 #include <cmath>
@@ -28,24 +28,7 @@ GridBasePtr makeSphereLevelSet(double radius, const Vec3d& center, double voxelS
 }
 
 GridBasePtr makeLevelSetFromDistance(const std::function<double(const Vec3d&)>& sdf, const Box3& box, double voxelSize) {
-    initializeOpenVdb();
-    const float band = float(3.0 * voxelSize);
-    auto g = openvdb::FloatGrid::create(band);
-    g->setTransform(openvdb::math::Transform::createLinearTransform(voxelSize));
-    g->setGridClass(openvdb::GRID_LEVEL_SET);
-    g->setName("surface");
-    auto acc = g->getAccessor();
-    const openvdb::Coord lo = openvdb::Coord::floor(openvdb::Vec3d(box.min.x, box.min.y, box.min.z) / voxelSize);
-    const openvdb::Coord hi = openvdb::Coord::floor(openvdb::Vec3d(box.max.x, box.max.y, box.max.z) / voxelSize) + openvdb::Coord(1);
-    for (int i = lo.x(); i <= hi.x(); ++i)
-        for (int j = lo.y(); j <= hi.y(); ++j)
-            for (int k = lo.z(); k <= hi.z(); ++k) {
-                const openvdb::Vec3d p = g->indexToWorld(openvdb::Coord(i, j, k));
-                const float d = float(sdf(Vec3d(p.x(), p.y(), p.z())));
-                if (std::fabs(d) < band) acc.setValue(openvdb::Coord(i, j, k), d);
-            }
-    openvdb::tools::signedFloodFill(g->tree());
-    return g;
+    return levelSetFromDistance(sdf, box, voxelSize);
 }
 
 GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double voxelSize) {
