@@ -101,6 +101,7 @@ void runCompare(const CompareOptions& o) {
                             {"boundary_edges", r.topology.boundaryEdges},
                             {"non_manifold_edges", r.topology.nonManifoldEdges},
                             {"inconsistent_edges", r.topology.inconsistentEdges},
+                            {"non_manifold_vertices", r.topology.nonManifoldVertices},
                             {"closed_manifold_oriented", r.topology.closedManifoldOriented()},
                             {"mesh_samples", r.quality.meshSamples},
                             {"mean_distance", r.quality.meanDistance},
