@@ -67,7 +67,7 @@ int main(int argc, char** argv) {
         cases.push_back({std::string(f).substr(4) + ":" + g.name, g.grid});
     }
 
-    bench::Table table({"case", "active voxels", "iso", "method", "seconds", "peak MiB", "vertices", "polygons", "time ratio"});
+    bench::Table table({"case", "active voxels", "iso", "method", "seconds", "peak MiB", "vertices", "polygons", "time ratio", "vs 1 thread"});
     for (const Case& c : cases) {
         const auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(c.grid);
         double iso = 0.0;
@@ -107,18 +107,27 @@ int main(int argc, char** argv) {
         std::size_t mcVerts = 0, mcPolys = 0, dmcVerts = 0, dmcPolys = 0;
         const bench::Measure mc = runOurs(MeshMethod::MarchingCubes, mcVerts, mcPolys);
         const bench::Measure dmc = runOurs(MeshMethod::Dmc, dmcVerts, dmcPolys);
+        // DMC's own speed-up: the same run on one thread (when more are in use).
+        double dmcSpeedup = 1.0;
+        if (limit.threads() > 1) {
+            ThreadLimit one(1);
+            std::size_t v1 = 0, p1 = 0;
+            dmcSpeedup = runOurs(MeshMethod::Dmc, v1, p1).seconds / dmc.seconds;
+        }
 
-        auto row = [&](const std::string& method, const bench::Measure& m, std::size_t v, std::size_t p) {
+        auto row = [&](const std::string& method, const bench::Measure& m, std::size_t v, std::size_t p, double speedup) {
             const double ratio = m.seconds / ref.seconds;
+            nlohmann::json record{{"case", c.name}, {"active_voxels", active}, {"iso", iso}, {"method", method}, {"seconds", m.seconds},
+                                  {"peak_mib", m.peakMiB}, {"vertices", v}, {"polygons", p}, {"threads", limit.threads()},
+                                  {"time_ratio_vs_volumeToMesh", ratio}};
+            if (speedup > 0) record["speedup_vs_1_thread"] = speedup;
             table.add({c.name, std::to_string(active), bench::fixed(iso, 3), method, bench::fixed(m.seconds, 3), bench::fixed(m.peakMiB, 1),
-                       std::to_string(v), std::to_string(p), bench::fixed(ratio, 2)},
-                      {{"case", c.name}, {"active_voxels", active}, {"iso", iso}, {"method", method}, {"seconds", m.seconds},
-                       {"peak_mib", m.peakMiB}, {"vertices", v}, {"polygons", p}, {"threads", limit.threads()},
-                       {"time_ratio_vs_volumeToMesh", ratio}});
+                       std::to_string(v), std::to_string(p), bench::fixed(ratio, 2), speedup > 0 ? bench::fixed(speedup, 2) : "-"},
+                      record);
         };
-        row("volumeToMesh", ref, refVerts, refPolys);
-        row("vdbsurf mc", mc, mcVerts, mcPolys);
-        row("vdbsurf dmc", dmc, dmcVerts, dmcPolys);
+        row("volumeToMesh", ref, refVerts, refPolys, 0);
+        row("vdbsurf mc", mc, mcVerts, mcPolys, 0);
+        row("vdbsurf dmc", dmc, dmcVerts, dmcPolys, limit.threads() > 1 ? dmcSpeedup : 0);
     }
     std::cout << "bench_mesh: " << limit.threads() << " threads, median of " << repeat << " runs\n";
     table.print();
