@@ -66,12 +66,6 @@ std::vector<Shape> thinShapes(double H, int trials) {
     return out;
 }
 
-std::size_t triangles(const Mesh& m) {
-    std::size_t n = 0;
-    for (std::size_t p = 0; p < m.polygonCount(); ++p) n += m.polygonSize(p) - 2;
-    return n;
-}
-
 } // namespace
 
 int main(int argc, char** argv) {
@@ -97,7 +91,7 @@ int main(int argc, char** argv) {
         // The fine reference: volumeToMesh at the grid's own voxels, measured in units of H.
         const PeerMesh ref = volumeToMeshPeer(grid, 0.0, nullptr);
         const SurfaceQuality refQ = measureSurfaceQuality(ref.mesh, field, 0.0, isoSurfaceSamples(field, 0.0, fine), H);
-        const std::size_t refTriangles = triangles(ref.mesh), refPieces = countComponents(ref.mesh);
+        const std::size_t refTriangles = ref.mesh.fannedTriangleCount(), refPieces = countComponents(ref.mesh);
 
         auto add = [&](const std::string& method, const std::string& spacing, std::size_t tris, std::size_t pieces, const SurfaceQuality& q,
                        double seconds) {

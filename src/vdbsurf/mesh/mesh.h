@@ -21,6 +21,8 @@ struct Mesh {
     void addPolygon(std::initializer_list<std::uint32_t> vs);
     void addPolygon(const std::uint32_t* vs, std::size_t n);
     std::size_t countPolygonsOfSize(std::uint32_t n) const;
+    // Triangles once every polygon is fanned (n - 2 for an n-gon).
+    std::size_t fannedTriangleCount() const { return indices.size() - 2 * polygonCount(); }
     bool empty() const { return polygonCount() == 0; }
     Box3 bounds() const;
 };

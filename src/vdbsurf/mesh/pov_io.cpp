@@ -85,9 +85,7 @@ void writePov(const std::string& path, const Mesh& mesh, const ViewCamera& camer
             out.put(",\n    ", 6);
             putVector(out, n);
         }
-        std::size_t triangles = 0;
-        for (std::size_t f = 0; f < mesh.polygonCount(); ++f) triangles += mesh.polygonSize(f) - 2;
-        out.put("\n  }\n  face_indices {\n    " + std::to_string(triangles));
+        out.put("\n  }\n  face_indices {\n    " + std::to_string(mesh.fannedTriangleCount()));
         for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
             const std::uint32_t* v = mesh.polygon(f);
             for (std::uint32_t k = 1; k + 1 < mesh.polygonSize(f); ++k) {

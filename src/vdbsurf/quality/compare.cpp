@@ -14,12 +14,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-std::size_t triangleCount(const Mesh& m) {
-    std::size_t n = 0;
-    for (std::size_t p = 0; p < m.polygonCount(); ++p) n += m.polygonSize(p) - 2;
-    return n;
-}
-
 CompareRow describe(std::string method, const Mesh& mesh, double seconds, const GridField& field, double iso,
                     const std::vector<Vec3d>& surface, double h) {
     CompareRow row;
@@ -27,7 +21,7 @@ CompareRow describe(std::string method, const Mesh& mesh, double seconds, const 
     row.seconds = seconds;
     row.vertices = mesh.points.size();
     row.polygons = mesh.polygonCount();
-    row.triangles = triangleCount(mesh);
+    row.triangles = mesh.fannedTriangleCount();
     row.components = countComponents(mesh);
     row.topology = checkTopology(mesh);
     row.quality = measureSurfaceQuality(mesh, field, iso, surface, h);
