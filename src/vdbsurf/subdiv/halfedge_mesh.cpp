@@ -7,6 +7,20 @@
 
 namespace vdbsurf::subdiv {
 
+HalfedgeMesh::Point nextFacePoint(const HalfedgeMesh& mesh, const FaceProperties& props, HalfedgeMesh::FaceHandle f, bool odd) {
+    if (!odd && mesh.property(props.kind, f) != kPlain) return mesh.property(props.storedPoint, f);
+    HalfedgeMesh::Point p(0, 0, 0);
+    const auto first = mesh.halfedge_handle(f);
+    auto h = first;
+    int n = 0;
+    do {
+        p += mesh.point(mesh.to_vertex_handle(h));
+        ++n;
+        h = mesh.next_halfedge_handle(h);
+    } while (h != first);
+    return p / double(n);
+}
+
 void releaseSpare(HalfedgeMesh& mesh, const FaceProperties& props) {
     mesh.clean(); // frees vertices, edges and faces but not property storage
     std::vector<HalfedgeMesh::Point>().swap(mesh.property(mesh.points_pph()).data_vector());

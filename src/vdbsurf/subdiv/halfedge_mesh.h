@@ -56,6 +56,10 @@ std::size_t buildHalfedgeMesh(const Mesh& mesh, const std::string& inputName, Ha
 void assemble(HalfedgeMesh& mesh, std::size_t vertexCount, const std::vector<std::uint32_t>& offsets,
               const std::vector<std::uint32_t>& indices, const std::vector<std::uint32_t>& partner);
 
+// The point a √2 step puts inside face f: the stored point of a merged quad or boundary fan
+// triangle on the even step, else the average of the face's vertices.
+HalfedgeMesh::Point nextFacePoint(const HalfedgeMesh& mesh, const FaceProperties& props, HalfedgeMesh::FaceHandle f, bool odd);
+
 // Frees the connectivity and the point and face-property storage of a mesh no longer needed
 // (the level a full step has just refined), keeping its registered properties.
 void releaseSpare(HalfedgeMesh& mesh, const FaceProperties& props);

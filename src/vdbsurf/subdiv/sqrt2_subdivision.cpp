@@ -35,16 +35,6 @@ struct Sqrt2Subdivider::Impl {
     int steps = 0;
     std::size_t splitVertices = 0;
 
-    Point centroid(HalfedgeMesh::FaceHandle f) const {
-        Point c(0, 0, 0);
-        int n = 0;
-        for (const auto v : mesh().fv_range(f)) {
-            c += mesh().point(v);
-            ++n;
-        }
-        return c / double(n);
-    }
-
     std::uint32_t combine(std::uint32_t a, std::uint32_t b) const { return merge == TagMerge::Max ? std::max(a, b) : (a | b); }
 
     void step(const std::vector<std::uint8_t>& refine);
@@ -128,7 +118,7 @@ void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     subdiv::parallelFor(nF, [&](std::size_t i) {
         if (!refine[i]) return;
         const auto f = m.face_handle(int(i));
-        facePoint[i] = (!odd && m.property(props.kind, f) != kPlain) ? m.property(props.storedPoint, f) : centroid(f);
+        facePoint[i] = subdiv::nextFacePoint(m, props, f, odd);
     });
 
     // Edges whose two faces are both refined disappear; on the odd step their Catmull-Clark edge

@@ -84,24 +84,7 @@ void refineEveryFace(const HalfedgeMesh& from, const FaceProperties& props, bool
     to.resize(nV + nF, newEdges, newFaces);
 
     // Face points first: the vertex rule and the edge points read them from `to`.
-    parallelFor(nF, [&](std::size_t i) {
-        const FH f{int(i)};
-        Point p(0, 0, 0);
-        if (!odd && from.property(props.kind, f) != kPlain) {
-            p = from.property(props.storedPoint, f);
-        } else {
-            const HH first = from.halfedge_handle(f);
-            HH h = first;
-            int n = 0;
-            do {
-                p += from.point(from.to_vertex_handle(h));
-                ++n;
-                h = from.next_halfedge_handle(h);
-            } while (h != first);
-            p /= double(n);
-        }
-        to.set_point(VH(int(nV + i)), p);
-    });
+    parallelFor(nF, [&](std::size_t i) { to.set_point(VH(int(nV + i)), nextFacePoint(from, props, FH{int(i)}, odd)); });
 
     // Connectivity, from each old halfedge inside a face: its piece's spoke pair, and the kept or
     // split boundary edge beside it.
