@@ -75,6 +75,21 @@ struct VertexRef {
     std::uint32_t leaf, local;
 };
 
+// Origin of the d-th (0..7) leaf-sized block that holds nodes of the leaf at `origin`: its own and
+// those of its +x, +y, +z neighbours, whose first layer closes the leaf's 9^3 node block.
+inline Coord nodeBlock(const Coord& origin, int d) { return origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1)); }
+
+// Is a node of the leaf at `origin` active in the tree behind `acc`? One probe per block (a
+// missing leaf under an inactive tile holds none) instead of one per node.
+template <typename Accessor>
+bool anyActiveNode(Accessor& acc, const Coord& origin) {
+    for (int d = 0; d < 8; ++d) {
+        const Coord lo = nodeBlock(origin, d);
+        if (acc.probeConstLeaf(lo) || acc.isValueOn(lo)) return true;
+    }
+    return false;
+}
+
 // Two polygons through the same vertices in opposite orders (two cells whose surfaces collapsed
 // onto the same welded nodes) enclose nothing: together they are a closed zero-volume pillow.
 // Marks both (drop[f] = 1); on an edge-manifold surface (call it only on one) their edges belong
@@ -130,6 +145,14 @@ struct LatticeSurface::Impl {
     // Leaf pointer -> index in leafManager order, for each leaf's neighbour table.
     std::unordered_map<const MaskLeaf*, std::int32_t> indexOf;
 
+    // The indices of the leaves beside w's (w.neighbor), from indexOf.
+    void linkNeighbours(LeafWork& w, openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>& cells) const {
+        for (int d = 0; d < 8; ++d) {
+            const MaskLeaf* nb = cells.probeConstLeaf(nodeBlock(w.origin, d));
+            w.neighbor[std::size_t(d)] = nb ? indexOf.at(nb) : -1;
+        }
+    }
+
     // All leaves, or only those listed (their work is recomputed from scratch).
     void firstPass(const std::vector<std::size_t>* only = nullptr);
     VertexRef vertexOf(const LeafWork& w, const Coord& cell, int e) const;
@@ -183,10 +206,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 w.wordRank[std::size_t(word)] = running;
                 running = std::uint16_t(running + __builtin_popcountll(mask.template getWord<std::uint64_t>(openvdb::Index(word))));
             }
-            for (int d = 0; d < 8; ++d) {
-                const MaskLeaf* nb = acc.probeConstLeaf(w.origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1)));
-                w.neighbor[std::size_t(d)] = nb ? indexOf.at(nb) : -1;
-            }
+            linkNeighbours(w, acc);
             const std::size_t cells = running;
             w.config.resize(cells);
             w.ownedEdges.resize(cells);
@@ -196,17 +216,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
             sampleLeafNodes(field, frame, leaf, needed, vals);
             if (nodeGradients) gradients.sample(field, frame, w.origin);
             moved.fill(0);
-            // Most leaves hold no moved node: one probe per 8^3 block of the deformation's trees
-            // (a missing leaf under an inactive tile holds none) instead of three per node.
-            auto deformedNear = [&](const Coord& o) {
-                for (int d = 0; d < 8; ++d) {
-                    const Coord lo = o.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1));
-                    if (offsetAcc->probeConstLeaf(lo) || offsetAcc->isValueOn(lo) || surfaceAcc->probeConstLeaf(lo) || surfaceAcc->isValueOn(lo))
-                        return true;
-                }
-                return false;
-            };
-            if (deformation && deformedNear(w.origin)) {
+            // Most leaves hold no moved node: then the three probes per node below are skipped.
+            if (deformation && (anyActiveNode(*offsetAcc, w.origin) || anyActiveNode(*surfaceAcc, w.origin))) {
                 for (int z = 0; z < kLeafNodesPerSide; ++z)
                     for (int y = 0; y < kLeafNodesPerSide; ++y)
                         for (int x = 0; x < kLeafNodesPerSide; ++x) {
@@ -568,12 +579,7 @@ void LatticeSurface::rebuildAround(const std::vector<Vec3i>& nodes, const Lattic
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*im.lattice.cells);
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
-            if (isDirty[li]) continue;
-            LeafWork& w = im.work[li];
-            for (int d = 0; d < 8; ++d) {
-                const MaskLeaf* nb = acc.probeConstLeaf(w.origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1)));
-                w.neighbor[std::size_t(d)] = nb ? im.indexOf.at(nb) : -1;
-            }
+            if (!isDirty[li]) im.linkNeighbours(im.work[li], acc);
         }
     });
     im.deformation = deformation.empty() ? nullptr : &deformation;
@@ -594,10 +600,7 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
             LeafWork& w = im.work[li];
             if (w.vertices.empty()) continue;
             // Only nodes of this leaf's block (origin .. origin + 8) can be edge ends here.
-            bool any = false;
-            for (int d = 0; d < 8 && !any; ++d)
-                any = onSurface.probeConstLeaf(w.origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1))) != nullptr;
-            if (!any) continue;
+            if (!anyActiveNode(onSurface, w.origin)) continue;
             std::vector<std::uint32_t> atDataNode;
             for (const auto& nv : w.nodeVertices) atDataNode.push_back(nv.first);
             std::sort(atDataNode.begin(), atDataNode.end());
