@@ -290,16 +290,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         (p.kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) += 1;
     }
     if (!flipped.empty()) {
-        // Which nodes bridging moves: the offsets it adds.
-        const openvdb::MaskTree before(*deformation.offsets, false, openvdb::TopologyCopy());
         ThinSearchOptions to;
         to.iso = iso;
         to.steps = options.searchSteps;
         to.cancel = options.cancel;
-        out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped);
         out.changedNodes = flipped;
-        for (auto it = deformation.offsets->cbeginValueOn(); it; ++it)
-            if (!before.isValueOn(it.getCoord())) out.changedNodes.emplace_back(it.getCoord().x(), it.getCoord().y(), it.getCoord().z());
+        out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped, nullptr, &out.changedNodes);
         std::sort(out.changedNodes.begin(), out.changedNodes.end(), [](const Vec3i& x, const Vec3i& y) {
             return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
         });

@@ -242,7 +242,8 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
 }
 
 std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,
-                              LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samplesOut) {
+                              LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samplesOut,
+                              std::vector<Vec3i>* movedOut) {
     const LatticeFrame& frame = lattice.frame;
     const double iso = options.iso;
     const Inside side = field.inside();
@@ -381,6 +382,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
             if (acc.isValueOn(all[i].node)) continue;
             acc.setValue(all[i].node, openvdb::Vec3f(all[i].offset.x, all[i].offset.y, all[i].offset.z));
             frontier.push_back(all[i].node);
+            if (movedOut) movedOut->emplace_back(all[i].node.x(), all[i].node.y(), all[i].node.z());
             ++bridged;
         }
     }

@@ -51,8 +51,10 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
 // The second phase on its own: starting from the nodes `from`, moves nodes between two nodes of
 // one side that marching cubes would separate across a diagonal although the field joins them,
 // and neighbours of a node alone on its side that find its part in their Ω. Also used after
-// sharp features flip a node onto a corner it had no edge to. Adds the evaluations to *samples.
+// sharp features flip a node onto a corner it had no edge to. Adds the evaluations to *samples
+// and the nodes it moves to *moved.
 std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,
-                              LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samples = nullptr);
+                              LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samples = nullptr,
+                              std::vector<Vec3i>* moved = nullptr);
 
 } // namespace vdbsurf
