@@ -24,25 +24,49 @@ double ellipsoidDistance(const Vec3d& r, const Vec3d& p, Vec3d& closest) {
     // Work in the first octant; the closest point keeps the point's signs. The closest point is
     // x_i = r_i² y_i / (t + r_i²) where F(t) = Σ (r_i y_i / (t + r_i²))² - 1 = 0, t ≥ 0 outside.
     const Vec3d y(std::fabs(p.x), std::fabs(p.y), std::fabs(p.z));
-    const Vec3d r2(r.x * r.x, r.y * r.y, r.z * r.z);
-    auto F = [&](double t) {
-        double s = 0;
-        for (int i = 0; i < 3; ++i) {
-            const double q = r[i] * y[i] / (t + r2[i]);
-            s += q * q;
+    if (r.x == r.y && r.y == r.z) { // a sphere: the closest point is along the radius
+        const double len = length(p);
+        if (len <= r.x) {
+            closest = p;
+            return 0.0;
         }
+        closest = p * (r.x / len);
+        return len - r.x;
+    }
+    const Vec3d r2(r.x * r.x, r.y * r.y, r.z * r.z);
+    const Vec3d ry(r.x * y.x, r.y * y.y, r.z * y.z);
+    auto F = [&](double t, double& slope) {
+        double s = 0, ds = 0;
+        for (int i = 0; i < 3; ++i) {
+            const double inv = 1.0 / (t + r2[i]);
+            const double q = ry[i] * inv;
+            s += q * q;
+            ds -= 2.0 * q * q * inv;
+        }
+        slope = ds;
         return s - 1.0;
     };
-    double lo = 0, hi = length(Vec3d(r.x * y.x, r.y * y.y, r.z * y.z)); // F(hi) <= 0
-    if (!(F(0) > 0)) { // on or inside the surface
+    double slope;
+    if (!(F(0, slope) > 0)) { // on or inside the surface
         closest = p;
         return 0.0;
     }
-    for (int i = 0; i < 200 && hi - lo > 1e-15 * std::max(1.0, hi); ++i) {
-        const double mid = 0.5 * (lo + hi);
-        (F(mid) > 0 ? lo : hi) = mid;
+    // F is convex and decreasing for t ≥ 0, so Newton's method from a point below the root climbs
+    // to it monotonically (quadratically near it) and never overshoots but by rounding. Each
+    // term alone bounds F from below, so max(r_i y_i - r_i²) is such a start.
+    double t = 0;
+    for (int i = 0; i < 3; ++i) t = std::max(t, ry[i] - r2[i]);
+    for (int i = 0; i < 100; ++i) {
+        const double f = F(t, slope);
+        if (!(f > 0) || !(slope < 0)) break;
+        const double next = t - f / slope;
+        if (!(next > t)) break;
+        // Convergence is quadratic: after a step below 1e-9 of the scale, the error left is
+        // ~1e-18 of it, so that step is the last (one fewer evaluation than waiting for 1e-15).
+        const bool converged = next - t <= 1e-9 * (t + r2[0] + r2[1] + r2[2]);
+        t = next;
+        if (converged) break;
     }
-    const double t = 0.5 * (lo + hi);
     Vec3d x;
     for (int i = 0; i < 3; ++i) x[i] = std::copysign(r2[i] * y[i] / (t + r2[i]), p[i]);
     closest = x;
@@ -77,6 +101,7 @@ PreparedPrimitive::PreparedPrimitive(const Primitive& p) : mP(p) {
         half[i] = p.core == CoreShape::Box ? h : std::sqrt(h);
     }
     mCoreBox = {p.center - half, p.center + half};
+    mMinRadius = std::min({p.size.x, p.size.y, p.size.z});
     const Vec3d grow(p.falloff, p.falloff, p.falloff);
     mInfluence = {mCoreBox.min - grow, mCoreBox.max + grow};
 }
@@ -92,13 +117,17 @@ Vec3d PreparedPrimitive::toWorld(const Vec3d& v) const {
             mR[2][0] * v.x + mR[2][1] * v.y + mR[2][2] * v.z};
 }
 
+Vec3d PreparedPrimitive::boxExcess(const Vec3d& q) const {
+    // Nearest face, edge or vertex: the excess over the half extents on each axis.
+    return {std::max(std::fabs(q.x) - mP.size.x, 0.0), std::max(std::fabs(q.y) - mP.size.y, 0.0),
+            std::max(std::fabs(q.z) - mP.size.z, 0.0)};
+}
+
 double PreparedPrimitive::coreDistance(const Vec3d& p, Vec3d& gradient) const {
     const Vec3d q = toLocal(p);
     gradient = Vec3d();
     if (mP.core == CoreShape::Box) {
-        // Nearest face, edge or vertex: the excess over the half extents on each axis.
-        const Vec3d e(std::max(std::fabs(q.x) - mP.size.x, 0.0), std::max(std::fabs(q.y) - mP.size.y, 0.0),
-                      std::max(std::fabs(q.z) - mP.size.z, 0.0));
+        const Vec3d e = boxExcess(q);
         const double d = length(e);
         if (d > 0) gradient = toWorld(Vec3d(std::copysign(e.x, q.x), std::copysign(e.y, q.y), std::copysign(e.z, q.z)) / d);
         return d;
@@ -110,8 +139,11 @@ double PreparedPrimitive::coreDistance(const Vec3d& p, Vec3d& gradient) const {
 }
 
 double PreparedPrimitive::coreDistance(const Vec3d& p) const {
-    Vec3d g;
-    return coreDistance(p, g);
+    // As coreDistance(p, gradient) without the gradient: this one runs per voxel.
+    const Vec3d q = toLocal(p);
+    if (mP.core == CoreShape::Box) return length(boxExcess(q));
+    Vec3d closest;
+    return ellipsoidDistance(mP.size, q, closest);
 }
 
 bool PreparedPrimitive::inCore(const Vec3d& p) const {
@@ -121,20 +153,31 @@ bool PreparedPrimitive::inCore(const Vec3d& p) const {
     return s <= 1.0;
 }
 
+bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
+    if (!mInfluence.contains(p)) return true;
+    if (mP.core == CoreShape::Box) return false; // its exact distance is as cheap as a bound
+    // With p = A·u (A the radii), every core point is A·x with |x| ≤ 1, so the distance is at
+    // least r_min·(|u| - 1): a cheap test that spares the root finding in the influence box's
+    // corners, far from the ellipsoid.
+    const Vec3d q = toLocal(p);
+    const double u = length(Vec3d(q.x / mP.size.x, q.y / mP.size.y, q.z / mP.size.z));
+    return mMinRadius * (u - 1.0) >= mP.falloff;
+}
+
 double PreparedPrimitive::density(const Vec3d& p) const {
-    if (!mInfluence.contains(p)) return 0.0;
+    if (beyondFalloff(p)) return 0.0;
     return mP.weight * falloffValue(coreDistance(p) / mP.falloff);
 }
 
 Vec3d PreparedPrimitive::densityGradient(const Vec3d& p) const {
-    if (!mInfluence.contains(p)) return {};
+    if (beyondFalloff(p)) return {};
     Vec3d g;
     const double d = coreDistance(p, g);
     return g * (mP.weight * falloffSlope(d / mP.falloff) / mP.falloff);
 }
 
 int PreparedPrimitive::area(const Vec3d& p) const {
-    if (!mInfluence.contains(p)) return 0;
+    if (beyondFalloff(p)) return 0;
     const double d = coreDistance(p);
     if (d <= 0) return 3;
     if (d >= mP.falloff) return 0;
@@ -155,6 +198,22 @@ void PreparedPrimitive::densityBounds(const Box3& box, double& lo, double& hi) c
     const double dmin = std::max(0.0, coreDistance(box.center()) - halfDiagonal * (1 + 1e-12) - 1e-12);
     lo = mP.weight * falloffValue(dmax / mP.falloff);
     hi = mP.weight * falloffValue(dmin / mP.falloff);
+}
+
+void PreparedPrimitive::densityBoundsAround(const Vec3d& c, double radius, double& lo, double& hi) const {
+    lo = hi = 0;
+    if (c.x + radius < mInfluence.min.x || c.y + radius < mInfluence.min.y || c.z + radius < mInfluence.min.z ||
+        c.x - radius > mInfluence.max.x || c.y - radius > mInfluence.max.y || c.z - radius > mInfluence.max.z)
+        return;
+    const double slack = radius * (1 + 1e-12) + 1e-12; // the caller's ball is from rounded voxel positions
+    if (mP.core == CoreShape::Ellipsoid) { // the cheap lower bound of beyondFalloff, first
+        const Vec3d q = toLocal(c);
+        const double u = length(Vec3d(q.x / mP.size.x, q.y / mP.size.y, q.z / mP.size.z));
+        if (mMinRadius * (u - 1.0) - slack >= mP.falloff) return;
+    }
+    const double d = coreDistance(c);
+    lo = mP.weight * falloffValue((d + slack) / mP.falloff);
+    hi = mP.weight * falloffValue(std::max(0.0, d - slack) / mP.falloff);
 }
 
 } // namespace vdbsurf

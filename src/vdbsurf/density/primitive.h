@@ -53,6 +53,8 @@ public:
     // its maximum over the box is at a corner (exact); its minimum is bounded by the centre's
     // distance less the half diagonal (distance is 1-Lipschitz).
     void densityBounds(const Box3& box, double& lo, double& hi) const;
+    // The same over a ball, from the centre's distance alone: cheaper and looser, for small blocks.
+    void densityBoundsAround(const Vec3d& centre, double radius, double& lo, double& hi) const;
 
     // Where the density can be non-zero (core grown by the falloff), and the core's own box.
     const Box3& influenceBox() const { return mInfluence; }
@@ -61,14 +63,18 @@ public:
 private:
     Vec3d toLocal(const Vec3d& p) const;
     Vec3d toWorld(const Vec3d& v) const;
+    bool beyondFalloff(const Vec3d& p) const; // a cheap sufficient test for density 0
+    Vec3d boxExcess(const Vec3d& local) const;  // box cores: how far past each face
     Primitive mP;
     double mR[3][3]; // local -> world rotation (columns: the local axes in world)
     Box3 mInfluence, mCoreBox;
+    double mMinRadius = 0;
 };
 
 // Exact distance from a point to the surface of an axis-aligned ellipsoid (radii r, centred at
-// the origin) for a point outside it, and the closest point; by bisection on the Lagrange
-// multiplier (the point's outside, so the root is bracketed and unique).
+// the origin) for a point outside it, and the closest point; by Newton's method on the Lagrange
+// multiplier, whose equation is convex and monotone outside (so the root is unique and the
+// iteration climbs to it from below). Spheres take the radial shortcut.
 double ellipsoidDistance(const Vec3d& radii, const Vec3d& p, Vec3d& closest);
 
 } // namespace vdbsurf

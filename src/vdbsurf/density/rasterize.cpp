@@ -70,23 +70,59 @@ struct DensityRaster::Impl {
         scene.primitivesTouching(box, among);
         r.fill = among.empty() ? Fill::Empty : decide(scene.bounds(box, among));
         if (r.fill != Fill::Exact) return r;
-        if (options.surfaceOnly) scene.primitivesTouching(blockBox(origin, kLeaf, 0), among);
         auto leaf = std::make_unique<LeafT>(origin, 0.0f, false);
-        bool any = false;
-        for (int i = 0; i < kLeaf; ++i)
-            for (int j = 0; j < kLeaf; ++j)
-                for (int k = 0; k < kLeaf; ++k) {
-                    const Coord ijk = origin.offsetBy(i, j, k);
-                    const float v = float(clampDensity(scene.sum(Vec3d(ijk.x(), ijk.y(), ijk.z()) * h(), among)));
-                    if (v > 0) {
-                        leaf->setValueOn(ijk, v);
-                        any = true;
-                    }
-                }
-        r.voxels = kLeaf * kLeaf * kLeaf;
+        const bool any = options.surfaceOnly ? fillNearSurface(*leaf, among, r.voxels) : fillExact(*leaf, among, r.voxels);
         if (any) r.leaf = std::move(leaf);
         else r.fill = Fill::Empty;
         return r;
+    }
+
+    void setExact(LeafT& leaf, const Coord& ijk, const std::vector<std::uint32_t>& among, bool& any) const {
+        const float v = float(clampDensity(scene.sum(Vec3d(ijk.x(), ijk.y(), ijk.z()) * h(), among)));
+        if (v > 0) {
+            leaf.setValueOn(ijk, v);
+            any = true;
+        }
+    }
+
+    bool fillExact(LeafT& leaf, const std::vector<std::uint32_t>& among, std::uint64_t& voxels) const {
+        bool any = false;
+        for (auto it = leaf.beginValueAll(); it; ++it) setExact(leaf, it.getCoord(), among, any);
+        voxels += LeafT::SIZE;
+        return any;
+    }
+
+    // Surface-only: the leaf is cut into 2³ blocks, each decided from the scene's bounds over the
+    // block grown by one voxel — a ball around its centre, from one distance per primitive (the
+    // distance is 1-Lipschitz). A block evaluated exactly is one that the surface may pass
+    // within a voxel of; every other voxel then has all its 26 neighbours on its own side, so
+    // no lattice edge that crosses 0.5 touches it and its side (1, or background) is all a
+    // mesher reads. The band evaluated is a few voxels thick instead of a leaf's width.
+    bool fillNearSurface(LeafT& leaf, const std::vector<std::uint32_t>& among, std::uint64_t& voxels) const {
+        constexpr int kBlock = 2;
+        // Block voxel centres span kBlock - 1 voxels; grown by one on each side, kBlock + 1.
+        const double radius = 0.5 * std::sqrt(3.0) * (kBlock + 1) * h();
+        const Coord origin = leaf.origin();
+        bool any = false;
+        for (int i = 0; i < kLeaf; i += kBlock)
+            for (int j = 0; j < kLeaf; j += kBlock)
+                for (int k = 0; k < kLeaf; k += kBlock) {
+                    const Coord b = origin.offsetBy(i, j, k);
+                    const Vec3d centre = (Vec3d(b.x(), b.y(), b.z()) + Vec3d(0.5, 0.5, 0.5) * (kBlock - 1)) * h();
+                    const Fill f = decide(scene.boundsAround(centre, radius, among));
+                    for (int a = 0; a < kBlock; ++a)
+                        for (int c = 0; c < kBlock; ++c)
+                            for (int d = 0; d < kBlock; ++d) {
+                                const Coord ijk = b.offsetBy(a, c, d);
+                                if (f == Fill::Exact) setExact(leaf, ijk, among, any);
+                                else if (f == Fill::Full) {
+                                    leaf.setValueOn(ijk, 1.0f);
+                                    any = true;
+                                }
+                            }
+                    if (f == Fill::Exact) voxels += kBlock * kBlock * kBlock;
+                }
+        return any;
     }
 
     void apply(LeafResult& r) {
@@ -147,37 +183,42 @@ struct DensityRaster::Impl {
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
 
-        for (const Coord& node : nodes) {
-            if (options.cancel) options.cancel->check();
-            if (!options.surfaceOnly) {
-                // Exact values are 0 or 1 throughout such a node, so deciding it whole gives the
-                // same voxels as deciding its leaves (what an edit does) — only faster.
+        // Full mode: exact values are 0 or 1 throughout a node whose bounds say so, so deciding it
+        // whole gives the same voxels as deciding its leaves (what an edit does) — only faster.
+        std::vector<Fill> nodeFill(nodes.size(), Fill::Exact);
+        if (!options.surfaceOnly)
+            tbb::parallel_for(std::size_t(0), nodes.size(), [&](std::size_t i) {
                 std::vector<std::uint32_t> among;
-                const Box3 box = blockBox(node, kNode, 0);
+                const Box3 box = blockBox(nodes[i], kNode, 0);
                 scene.primitivesTouching(box, among);
-                const Fill f = among.empty() ? Fill::Empty : decide(scene.bounds(box, among));
-                if (f == Fill::Empty) continue;
-                if (f == Fill::Full) {
-                    grid->tree().addTile(2, node, 1.0f, true);
-                    ++stats.nodeTiles;
-                    continue;
-                }
+                nodeFill[i] = among.empty() ? Fill::Empty : decide(scene.bounds(box, among));
+            });
+        // The leaves of every undecided node in one parallel loop: a node's 4096 leaves are
+        // mostly cheap decisions, so a loop per node would leave threads idle at each node's end.
+        std::vector<Coord> origins, openNodes;
+        for (std::size_t i = 0; i < nodes.size(); ++i) {
+            if (nodeFill[i] == Fill::Full) {
+                grid->tree().addTile(2, nodes[i], 1.0f, true);
+                ++stats.nodeTiles;
             }
-            std::vector<Coord> origins;
-            origins.reserve(16 * 16 * 16);
+            if (nodeFill[i] != Fill::Exact) continue;
+            openNodes.push_back(nodes[i]);
             for (int x = 0; x < kNode; x += kLeaf)
                 for (int y = 0; y < kNode; y += kLeaf)
-                    for (int z = 0; z < kNode; z += kLeaf) origins.push_back(node.offsetBy(x, y, z));
-            std::vector<LeafResult> results;
-            computeLeaves(origins, results);
-            stats.leavesDecided += origins.size();
-            const bool allFull = std::all_of(results.begin(), results.end(), [](const LeafResult& r) { return r.fill == Fill::Full; });
-            if (allFull) {
-                grid->tree().addTile(2, node, 1.0f, true);
+                    for (int z = 0; z < kNode; z += kLeaf) origins.push_back(nodes[i].offsetBy(x, y, z));
+        }
+        std::vector<LeafResult> results;
+        computeLeaves(origins, results);
+        stats.leavesDecided = origins.size();
+        constexpr std::size_t kLeavesPerNode = (kNode / kLeaf) * (kNode / kLeaf) * (kNode / kLeaf);
+        for (std::size_t n = 0; n < openNodes.size(); ++n) {
+            const auto first = results.begin() + std::ptrdiff_t(n * kLeavesPerNode), last = first + std::ptrdiff_t(kLeavesPerNode);
+            if (std::all_of(first, last, [](const LeafResult& r) { return r.fill == Fill::Full; })) {
+                grid->tree().addTile(2, openNodes[n], 1.0f, true);
                 ++stats.nodeTiles;
                 continue;
             }
-            for (LeafResult& r : results) apply(r);
+            for (auto r = first; r != last; ++r) apply(*r);
         }
         stats.seconds = since(t0);
     }

@@ -62,12 +62,15 @@ void DensityScene::primitivesTouching(const Box3& box, std::vector<std::uint32_t
         if (overlaps(mPrepared[i].influenceBox(), box)) out.push_back(i);
 }
 
-Interval DensityScene::bounds(const Box3& box, const std::vector<std::uint32_t>& among) const {
+namespace {
+// Signed sum of per-primitive density bounds: a subtraction's upper bound lowers the sum's lower.
+template <class PrimitiveBounds>
+Interval sumBounds(const std::vector<PreparedPrimitive>& prepared, const std::vector<std::uint32_t>& among, PrimitiveBounds&& of) {
     double lo = 0, hi = 0;
     for (std::uint32_t i : among) {
         double a, b;
-        mPrepared[i].densityBounds(box, a, b);
-        if (mPrepared[i].primitive().op == DensityOp::Add) {
+        of(prepared[i], a, b);
+        if (prepared[i].primitive().op == DensityOp::Add) {
             lo += a;
             hi += b;
         } else {
@@ -76,6 +79,16 @@ Interval DensityScene::bounds(const Box3& box, const std::vector<std::uint32_t>&
         }
     }
     return {clampDensity(lo), clampDensity(hi)};
+}
+} // namespace
+
+Interval DensityScene::bounds(const Box3& box, const std::vector<std::uint32_t>& among) const {
+    return sumBounds(mPrepared, among, [&](const PreparedPrimitive& p, double& lo, double& hi) { p.densityBounds(box, lo, hi); });
+}
+
+Interval DensityScene::boundsAround(const Vec3d& centre, double radius, const std::vector<std::uint32_t>& among) const {
+    return sumBounds(mPrepared, among,
+                     [&](const PreparedPrimitive& p, double& lo, double& hi) { p.densityBoundsAround(centre, radius, lo, hi); });
 }
 
 Interval DensityScene::bounds(const Box3& box) const {

@@ -32,6 +32,7 @@ public:
     void primitivesTouching(const Box3& box, std::vector<std::uint32_t>& out) const;
     double sum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
     Interval bounds(const Box3& box, const std::vector<std::uint32_t>& among) const;
+    Interval boundsAround(const Vec3d& centre, double radius, const std::vector<std::uint32_t>& among) const;
 
     const std::vector<Primitive>& primitives() const { return mPrimitives; }
     const std::vector<PreparedPrimitive>& prepared() const { return mPrepared; }
