@@ -257,6 +257,27 @@ TEST_CASE("surface-only rasterization: exact near the surface, right side elsewh
         for (auto c = bb.begin(); c; ++c) wrongSide += (*it > 0.5f) != (accB.getValue(*c) > 0.5f);
     }
     CHECK(wrongSide == 0);
+    // Every voxel left inexact has all 26 neighbours on its own side: each lattice cell the
+    // surface crosses has exact values at all 8 corners (what marching cubes and DMC's thin
+    // search interpolate).
+    auto accA = ga->getConstAccessor();
+    std::size_t inexact = 0, inexactNearSurface = 0;
+    for (auto it = ga->cbeginValueOn(); it; ++it) {
+        openvdb::CoordBBox bb;
+        it.getBoundingBox(bb);
+        for (auto c = bb.begin(); c; ++c) {
+            if (accB.getValue(*c) == *it) continue;
+            ++inexact;
+            const bool side = *it > 0.5f;
+            bool other = false;
+            for (int i = -1; i <= 1; ++i)
+                for (int j = -1; j <= 1; ++j)
+                    for (int k = -1; k <= 1; ++k) other = other || (accA.getValue((*c).offsetBy(i, j, k)) > 0.5f) != side;
+            inexactNearSurface += other;
+        }
+    }
+    CHECK(inexact > 0);
+    CHECK(inexactNearSurface == 0);
     // Marching cubes at the voxel size sees only values next to the surface: identical meshes.
     MeshRequest req;
     req.method = MeshMethod::MarchingCubes;
