@@ -102,6 +102,7 @@ PreparedPrimitive::PreparedPrimitive(const Primitive& p) : mP(p) {
     }
     mCoreBox = {p.center - half, p.center + half};
     mMinRadius = std::min({p.size.x, p.size.y, p.size.z});
+    mInverseRadii = {1.0 / p.size.x, 1.0 / p.size.y, 1.0 / p.size.z};
     const Vec3d grow(p.falloff, p.falloff, p.falloff);
     mInfluence = {mCoreBox.min - grow, mCoreBox.max + grow};
 }
@@ -153,20 +154,34 @@ bool PreparedPrimitive::inCore(const Vec3d& p) const {
     return s <= 1.0;
 }
 
+double PreparedPrimitive::scaledRadius(const Vec3d& q) const {
+    return length(Vec3d(q.x * mInverseRadii.x, q.y * mInverseRadii.y, q.z * mInverseRadii.z));
+}
+
 bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
     if (!mInfluence.contains(p)) return true;
     if (mP.core == CoreShape::Box) return false; // its exact distance is as cheap as a bound
     // With p = A·u (A the radii), every core point is A·x with |x| ≤ 1, so the distance is at
     // least r_min·(|u| - 1): a cheap test that spares the root finding in the influence box's
     // corners, far from the ellipsoid.
-    const Vec3d q = toLocal(p);
-    const double u = length(Vec3d(q.x / mP.size.x, q.y / mP.size.y, q.z / mP.size.z));
-    return mMinRadius * (u - 1.0) >= mP.falloff;
+    return mMinRadius * (scaledRadius(toLocal(p)) - 1.0) >= mP.falloff;
 }
 
 double PreparedPrimitive::density(const Vec3d& p) const {
-    if (beyondFalloff(p)) return 0.0;
-    return mP.weight * falloffValue(coreDistance(p) / mP.falloff);
+    // The hot path of rasterization: beyondFalloff and coreDistance, sharing one toLocal.
+    if (!mInfluence.contains(p)) return 0.0;
+    const Vec3d q = toLocal(p);
+    double d;
+    if (mP.core == CoreShape::Box) {
+        d = length(boxExcess(q));
+    } else {
+        const double u = scaledRadius(q);
+        if (u <= 1.0) return mP.weight; // in the core
+        if (mMinRadius * (u - 1.0) >= mP.falloff) return 0.0;
+        Vec3d closest;
+        d = ellipsoidDistance(mP.size, q, closest);
+    }
+    return mP.weight * falloffValue(d / mP.falloff);
 }
 
 Vec3d PreparedPrimitive::densityGradient(const Vec3d& p) const {
@@ -208,8 +223,7 @@ void PreparedPrimitive::densityBoundsAround(const Vec3d& c, double radius, doubl
     const double slack = radius * (1 + 1e-12) + 1e-12; // the caller's ball is from rounded voxel positions
     if (mP.core == CoreShape::Ellipsoid) { // the cheap lower bound of beyondFalloff, first
         const Vec3d q = toLocal(c);
-        const double u = length(Vec3d(q.x / mP.size.x, q.y / mP.size.y, q.z / mP.size.z));
-        if (mMinRadius * (u - 1.0) - slack >= mP.falloff) return;
+        if (mMinRadius * (scaledRadius(q) - 1.0) - slack >= mP.falloff) return;
     }
     const double d = coreDistance(c);
     lo = mP.weight * falloffValue((d + slack) / mP.falloff);

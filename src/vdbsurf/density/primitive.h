@@ -53,6 +53,11 @@ public:
     // its maximum over the box is at a corner (exact); its minimum is bounded by the centre's
     // distance less the half diagonal (distance is 1-Lipschitz).
     void densityBounds(const Box3& box, double& lo, double& hi) const;
+    // Whether the density can be non-zero in the box (its bounds there, as densityBounds).
+    bool reaches(const Box3& box, double& lo, double& hi) const {
+        densityBounds(box, lo, hi);
+        return hi > 0;
+    }
     // The same over a ball, from the centre's distance alone: cheaper and looser, for small blocks.
     void densityBoundsAround(const Vec3d& centre, double radius, double& lo, double& hi) const;
 
@@ -64,11 +69,13 @@ private:
     Vec3d toLocal(const Vec3d& p) const;
     Vec3d toWorld(const Vec3d& v) const;
     bool beyondFalloff(const Vec3d& p) const; // a cheap sufficient test for density 0
+    double scaledRadius(const Vec3d& local) const; // ellipsoids: |local / radii|, ≤ 1 in the core
     Vec3d boxExcess(const Vec3d& local) const;  // box cores: how far past each face
     Primitive mP;
     double mR[3][3]; // local -> world rotation (columns: the local axes in world)
     Box3 mInfluence, mCoreBox;
     double mMinRadius = 0;
+    Vec3d mInverseRadii;
 };
 
 // Exact distance from a point to the surface of an axis-aligned ellipsoid (radii r, centred at

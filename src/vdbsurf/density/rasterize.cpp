@@ -8,8 +8,11 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
+#include <bitset>
 #include <chrono>
 #include <cmath>
+#include <unordered_map>
 
 namespace vdbsurf {
 
@@ -23,20 +26,41 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 constexpr int kLeaf = 8, kNode = 128;
+constexpr int kBlock = 2, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
 
 enum class Fill { Empty, Full, Exact };
+
+// What an edit needs to update an exact leaf without summing every primitive again: the
+// fixed-point sum at each voxel that was evaluated and, in surface-only mode, each 2³ block's
+// bound sums (which decide which voxels are evaluated).
+struct LeafSums {
+    std::array<FixedDensity, LeafT::SIZE> voxel{};
+    std::bitset<LeafT::SIZE> known;
+    std::array<FixedInterval, kBlocksPerLeaf> blocks{};
+};
 
 struct LeafResult {
     Coord origin;
     Fill fill = Fill::Empty;
     std::unique_ptr<LeafT> leaf;
-    std::uint64_t voxels = 0;
+    std::unique_ptr<LeafSums> sums;
+    std::uint64_t voxels = 0, updated = 0;
 };
 
 bool samePrimitive(const Primitive& a, const Primitive& b) {
     return a.core == b.core && a.center == b.center && a.size == b.size && a.rotationDegrees == b.rotationDegrees &&
            a.falloff == b.falloff && a.weight == b.weight && a.op == b.op;
 }
+
+// The primitives an edit changed: indices into the scene before (removed) and after (added).
+struct Change {
+    const DensityScene* before = nullptr;
+    std::vector<std::uint32_t> removed, added;
+};
+
+struct CoordHash {
+    std::size_t operator()(const Coord& c) const { return c.hash<20>(); }
+};
 
 } // namespace
 
@@ -45,6 +69,7 @@ struct DensityRaster::Impl {
     RasterOptions options;
     FloatGrid::Ptr grid;
     RasterStats stats;
+    std::unordered_map<Coord, std::unique_ptr<LeafSums>, CoordHash> sums; // options.keepSums
 
     Impl(const DensityScene& s, const RasterOptions& o) : scene(s), options(o) {}
 
@@ -56,73 +81,123 @@ struct DensityRaster::Impl {
                 Vec3d(origin.x() + n - 1 + grow, origin.y() + n - 1 + grow, origin.z() + n - 1 + grow) * h()};
     }
 
+    // Everything a leaf's rule reads lies in its reach: the leaf itself in full mode; in
+    // surface-only mode the balls around its blocks (below), which reach 2.1 voxels past it.
+    int reachGrow() const { return options.surfaceOnly ? 3 : 0; }
+    Box3 reachBox(const Coord& origin) const { return blockBox(origin, kLeaf, reachGrow()); }
+
     Fill decide(const Interval& b) const {
         if (options.surfaceOnly) return b.hi < 0.5 ? Fill::Empty : (b.lo > 0.5 ? Fill::Full : Fill::Exact);
         return b.hi <= 0 ? Fill::Empty : (b.lo >= 1 ? Fill::Full : Fill::Exact);
     }
+    Fill decide(const FixedInterval& b) const { // surface-only blocks; exact comparisons with 0.5
+        return b.hi < kFixedHalf ? Fill::Empty : (b.lo > kFixedHalf ? Fill::Full : Fill::Exact);
+    }
 
-    // The one rule for a leaf, whatever path asks: a full build and an edit agree on it.
-    LeafResult computeLeaf(const Coord& origin) const {
+    // The one rule for a leaf, whatever path asks: a full build and an edit agree on it. In an
+    // edit, with `prev` (the leaf's sums before it), voxels and blocks that were summed are
+    // corrected by the changed primitives alone; the result is the same bit for bit.
+    LeafResult computeLeaf(const Coord& origin, const LeafSums* prev, const Change* change) const {
         LeafResult r;
         r.origin = origin;
+        const Box3 reach = reachBox(origin);
+        // The primitives that reach the leaf: one test (PreparedPrimitive::reaches) for a build, an
+        // edit's dirty set and the sums an edit corrects, so all three agree on every leaf.
         std::vector<std::uint32_t> among;
-        const Box3 box = blockBox(origin, kLeaf, options.surfaceOnly ? 1 : 0);
-        scene.primitivesTouching(box, among);
-        r.fill = among.empty() ? Fill::Empty : decide(scene.bounds(box, among));
+        const Interval bounds = scene.boundsReaching(reach, among);
+        r.fill = among.empty() ? Fill::Empty : decide(bounds);
         if (r.fill != Fill::Exact) return r;
+
+        // The changed primitives that take part here, before and after.
+        std::vector<std::uint32_t> removed, added;
+        if (change) {
+            for (std::uint32_t j : change->added)
+                if (std::binary_search(among.begin(), among.end(), j)) added.push_back(j);
+            if (added.size() == among.size()) {
+                // No unchanged primitive reaches the leaf, so what it adds is exactly 0 at every
+                // voxel and block: start from zero sums (typically where a moved primitive arrives).
+                static const LeafSums zero = [] {
+                    LeafSums z;
+                    z.known.set();
+                    return z;
+                }();
+                prev = &zero;
+            } else if (prev) {
+                double a, b;
+                for (std::uint32_t i : change->removed)
+                    if (change->before->prepared()[i].reaches(reach, a, b)) removed.push_back(i);
+            }
+        }
         auto leaf = std::make_unique<LeafT>(origin, 0.0f, false);
-        const bool any = options.surfaceOnly ? fillNearSurface(*leaf, among, r.voxels) : fillExact(*leaf, among, r.voxels);
+        auto out = std::make_unique<LeafSums>();
+        bool any = false;
+        auto setExact = [&](const Coord& ijk) {
+            const Vec3d p = Vec3d(ijk.x(), ijk.y(), ijk.z()) * h();
+            const auto n = LeafT::coordToOffset(ijk);
+            FixedDensity s;
+            if (prev && prev->known[n]) {
+                s = prev->voxel[n];
+                for (std::uint32_t i : removed) s -= change->before->contribution(i, p);
+                for (std::uint32_t j : added) s += scene.contribution(j, p);
+                ++r.updated;
+            } else {
+                s = scene.fixedSum(p, among);
+                ++r.voxels;
+            }
+            out->voxel[n] = s;
+            out->known.set(n);
+            const float v = float(clampDensity(fromFixed(s)));
+            if (v > 0) {
+                leaf->setValueOn(ijk, v);
+                any = true;
+            }
+        };
+        if (!options.surfaceOnly) {
+            for (auto it = leaf->beginValueAll(); it; ++it) setExact(it.getCoord());
+        } else {
+            // The leaf is cut into 2³ blocks, each decided from the scene's bounds over the block
+            // grown by one voxel — a ball around its centre, from one distance per primitive (the
+            // distance is 1-Lipschitz). A block evaluated exactly is one the surface may pass within
+            // a voxel of; every other voxel has all its 26 neighbours on its own side, so no lattice
+            // cell the surface crosses has it as a corner, and its side (1, or background) is all a
+            // mesher reads. The band evaluated is a few voxels thick instead of a leaf's width.
+            const double radius = 0.5 * std::sqrt(3.0) * (kBlock + 1) * h();
+            int index = 0;
+            for (int i = 0; i < kLeaf; i += kBlock)
+                for (int j = 0; j < kLeaf; j += kBlock)
+                    for (int k = 0; k < kLeaf; k += kBlock, ++index) {
+                        const Coord b = origin.offsetBy(i, j, k);
+                        const Vec3d centre = (Vec3d(b.x(), b.y(), b.z()) + Vec3d(0.5, 0.5, 0.5) * (kBlock - 1)) * h();
+                        FixedInterval bounds;
+                        auto add = [&bounds](const FixedInterval& t, int sign) {
+                            bounds.lo += sign * t.lo;
+                            bounds.hi += sign * t.hi;
+                        };
+                        if (prev) {
+                            bounds = prev->blocks[index];
+                            for (std::uint32_t q : removed) add(change->before->contributionBoundsAround(q, centre, radius), -1);
+                            for (std::uint32_t q : added) add(scene.contributionBoundsAround(q, centre, radius), 1);
+                        } else {
+                            for (std::uint32_t q : among) add(scene.contributionBoundsAround(q, centre, radius), 1);
+                        }
+                        out->blocks[index] = bounds;
+                        const Fill f = decide(bounds);
+                        for (int a = 0; a < kBlock; ++a)
+                            for (int c = 0; c < kBlock; ++c)
+                                for (int d = 0; d < kBlock; ++d) {
+                                    const Coord ijk = b.offsetBy(a, c, d);
+                                    if (f == Fill::Exact) setExact(ijk);
+                                    else if (f == Fill::Full) {
+                                        leaf->setValueOn(ijk, 1.0f);
+                                        any = true;
+                                    }
+                                }
+                    }
+        }
+        if (options.keepSums) r.sums = std::move(out);
         if (any) r.leaf = std::move(leaf);
         else r.fill = Fill::Empty;
         return r;
-    }
-
-    void setExact(LeafT& leaf, const Coord& ijk, const std::vector<std::uint32_t>& among, bool& any) const {
-        const float v = float(clampDensity(scene.sum(Vec3d(ijk.x(), ijk.y(), ijk.z()) * h(), among)));
-        if (v > 0) {
-            leaf.setValueOn(ijk, v);
-            any = true;
-        }
-    }
-
-    bool fillExact(LeafT& leaf, const std::vector<std::uint32_t>& among, std::uint64_t& voxels) const {
-        bool any = false;
-        for (auto it = leaf.beginValueAll(); it; ++it) setExact(leaf, it.getCoord(), among, any);
-        voxels += LeafT::SIZE;
-        return any;
-    }
-
-    // Surface-only: the leaf is cut into 2³ blocks, each decided from the scene's bounds over the
-    // block grown by one voxel — a ball around its centre, from one distance per primitive (the
-    // distance is 1-Lipschitz). A block evaluated exactly is one that the surface may pass
-    // within a voxel of; every other voxel then has all its 26 neighbours on its own side, so
-    // no lattice edge that crosses 0.5 touches it and its side (1, or background) is all a
-    // mesher reads. The band evaluated is a few voxels thick instead of a leaf's width.
-    bool fillNearSurface(LeafT& leaf, const std::vector<std::uint32_t>& among, std::uint64_t& voxels) const {
-        constexpr int kBlock = 2;
-        // Block voxel centres span kBlock - 1 voxels; grown by one on each side, kBlock + 1.
-        const double radius = 0.5 * std::sqrt(3.0) * (kBlock + 1) * h();
-        const Coord origin = leaf.origin();
-        bool any = false;
-        for (int i = 0; i < kLeaf; i += kBlock)
-            for (int j = 0; j < kLeaf; j += kBlock)
-                for (int k = 0; k < kLeaf; k += kBlock) {
-                    const Coord b = origin.offsetBy(i, j, k);
-                    const Vec3d centre = (Vec3d(b.x(), b.y(), b.z()) + Vec3d(0.5, 0.5, 0.5) * (kBlock - 1)) * h();
-                    const Fill f = decide(scene.boundsAround(centre, radius, among));
-                    for (int a = 0; a < kBlock; ++a)
-                        for (int c = 0; c < kBlock; ++c)
-                            for (int d = 0; d < kBlock; ++d) {
-                                const Coord ijk = b.offsetBy(a, c, d);
-                                if (f == Fill::Exact) setExact(leaf, ijk, among, any);
-                                else if (f == Fill::Full) {
-                                    leaf.setValueOn(ijk, 1.0f);
-                                    any = true;
-                                }
-                            }
-                    if (f == Fill::Exact) voxels += kBlock * kBlock * kBlock;
-                }
-        return any;
     }
 
     void apply(LeafResult& r) {
@@ -141,19 +216,30 @@ struct DensityRaster::Impl {
             ++stats.leavesEvaluated;
             break;
         }
+        if (r.sums) sums[r.origin] = std::move(r.sums);
+        else if (!sums.empty()) sums.erase(r.origin);
         stats.voxelsEvaluated += r.voxels;
+        stats.voxelsUpdated += r.updated;
     }
 
-    void computeLeaves(const std::vector<Coord>& origins, std::vector<LeafResult>& out) const {
+    void computeLeaves(const std::vector<Coord>& origins, std::vector<LeafResult>& out, const Change* change) const {
         out.resize(origins.size());
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, origins.size(), 16), [&](const auto& range) {
             if (options.cancel) options.cancel->check();
-            for (std::size_t i = range.begin(); i != range.end(); ++i) out[i] = computeLeaf(origins[i]);
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                const LeafSums* prev = nullptr;
+                if (change) {
+                    const auto it = sums.find(origins[i]);
+                    if (it != sums.end()) prev = it->second.get();
+                }
+                out[i] = computeLeaf(origins[i], prev, change);
+            }
         });
     }
 
-    // Leaf origins whose (grown) boxes the world box reaches.
-    void leavesIn(const Box3& world, int grow, std::vector<Coord>& out) const {
+    // Leaf origins whose reach the world box touches.
+    void leavesIn(const Box3& world, std::vector<Coord>& out) const {
+        const int grow = reachGrow();
         auto lo = [&](double v) { return int(std::floor(v / h())) - grow; };
         auto hi = [&](double v) { return int(std::ceil(v / h())) + grow; };
         const Coord a(lo(world.min.x) & ~(kLeaf - 1), lo(world.min.y) & ~(kLeaf - 1), lo(world.min.z) & ~(kLeaf - 1));
@@ -166,6 +252,7 @@ struct DensityRaster::Impl {
     void build() {
         const auto t0 = Clock::now();
         stats = {};
+        sums.clear();
         grid = FloatGrid::create(0.0f);
         grid->setName("density");
         grid->setGridClass(openvdb::GRID_FOG_VOLUME);
@@ -173,11 +260,10 @@ struct DensityRaster::Impl {
 
         // The 128³ nodes that added density reaches (subtraction alone makes none).
         std::vector<Coord> nodes;
-        const int grow = options.surfaceOnly ? 1 : 0;
         for (const PreparedPrimitive& p : scene.prepared()) {
             if (p.primitive().op != DensityOp::Add) continue;
             std::vector<Coord> leaves;
-            leavesIn(p.influenceBox(), grow, leaves);
+            leavesIn(p.influenceBox(), leaves);
             for (const Coord& c : leaves) nodes.emplace_back(c.x() & ~(kNode - 1), c.y() & ~(kNode - 1), c.z() & ~(kNode - 1));
         }
         std::sort(nodes.begin(), nodes.end());
@@ -208,7 +294,7 @@ struct DensityRaster::Impl {
                     for (int z = 0; z < kNode; z += kLeaf) origins.push_back(nodes[i].offsetBy(x, y, z));
         }
         std::vector<LeafResult> results;
-        computeLeaves(origins, results);
+        computeLeaves(origins, results, nullptr);
         stats.leavesDecided = origins.size();
         constexpr std::size_t kLeavesPerNode = (kNode / kLeaf) * (kNode / kLeaf) * (kNode / kLeaf);
         for (std::size_t n = 0; n < openNodes.size(); ++n) {
@@ -226,10 +312,10 @@ struct DensityRaster::Impl {
     void edit(const DensityScene& edited) {
         const auto t0 = Clock::now();
         stats = {};
+        // Primitives in one list and not the other. Sums are order-free (fixed point), so the
+        // rest may be reordered or renamed freely: they change nothing.
         const auto& before = scene.primitives();
         const auto& after = edited.primitives();
-        // Primitives in one list and not the other; the rest must keep their order, or sums
-        // would be added in another order everywhere (then everything is recomputed).
         std::vector<bool> keptBefore(before.size(), false), keptAfter(after.size(), false);
         for (std::size_t i = 0; i < before.size(); ++i)
             for (std::size_t j = 0; j < after.size(); ++j)
@@ -237,43 +323,32 @@ struct DensityRaster::Impl {
                     keptBefore[i] = keptAfter[j] = true;
                     break;
                 }
-        std::vector<const Primitive*> orderBefore, orderAfter;
-        for (std::size_t i = 0; i < before.size(); ++i)
-            if (keptBefore[i]) orderBefore.push_back(&before[i]);
-        for (std::size_t j = 0; j < after.size(); ++j)
-            if (keptAfter[j]) orderAfter.push_back(&after[j]);
-        bool sameOrder = orderBefore.size() == orderAfter.size();
-        for (std::size_t i = 0; sameOrder && i < orderBefore.size(); ++i) sameOrder = samePrimitive(*orderBefore[i], *orderAfter[i]);
-        if (!sameOrder) {
-            scene = edited;
-            build();
-            return;
-        }
+        Change change;
+        for (std::uint32_t i = 0; i < before.size(); ++i)
+            if (!keptBefore[i]) change.removed.push_back(i);
+        for (std::uint32_t j = 0; j < after.size(); ++j)
+            if (!keptAfter[j]) change.added.push_back(j);
 
-        // Leaves the changed primitives reach: within their influence boxes, and where their
-        // own bounds say they add something (a ball fills half its box). Elsewhere they add
+        // The leaves a changed primitive takes part in, before or after. Elsewhere it adds
         // exactly 0, so the leaf's voxels and decision are what they were.
         std::vector<Coord> origins;
-        const int grow = options.surfaceOnly ? 1 : 0;
         auto reached = [&](const PreparedPrimitive& p) {
             std::vector<Coord> leaves;
-            leavesIn(p.influenceBox(), grow, leaves);
-            for (const Coord& c : leaves) {
-                double lo, hi;
-                p.densityBounds(blockBox(c, kLeaf, grow), lo, hi);
-                if (hi > 0) origins.push_back(c);
-            }
+            leavesIn(p.influenceBox(), leaves);
+            double lo, hi;
+            for (const Coord& c : leaves)
+                if (p.reaches(reachBox(c), lo, hi)) origins.push_back(c);
         };
-        for (std::size_t i = 0; i < before.size(); ++i)
-            if (!keptBefore[i]) reached(scene.prepared()[i]);
-        for (std::size_t j = 0; j < after.size(); ++j)
-            if (!keptAfter[j]) reached(edited.prepared()[j]);
+        for (std::uint32_t i : change.removed) reached(scene.prepared()[i]);
+        for (std::uint32_t j : change.added) reached(edited.prepared()[j]);
         std::sort(origins.begin(), origins.end());
         origins.erase(std::unique(origins.begin(), origins.end()), origins.end());
 
+        const DensityScene old = std::move(scene);
         scene = edited;
+        change.before = &old;
         std::vector<LeafResult> results;
-        computeLeaves(origins, results);
+        computeLeaves(origins, results, &change);
         for (LeafResult& r : results) apply(r);
         stats.leavesDecided = stats.leavesRecomputed = origins.size();
         stats.seconds = since(t0);

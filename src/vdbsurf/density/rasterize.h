@@ -4,11 +4,13 @@
 // Voxel (i, j, k) sits at world h·(i, j, k). Each 8³ leaf is decided from the scene's bounds
 // over it: no density → background (no work); density 1 throughout → a constant tile (no
 // per-voxel work; whole 128³ nodes become one tile); otherwise its voxels are evaluated, only
-// for the primitives whose influence reaches the leaf. With surfaceOnly, a leaf is evaluated
-// only where the 0.5 surface can pass within one voxel of it; the others are filled by side
-// (1 inside, background outside), which is all a mesher needs. The decision for a leaf depends
-// only on the primitives that reach it, so an edit recomputes only the leaves in the old and
-// new influence of what changed, and equals a full rebuild voxel for voxel.
+// for the primitives that reach the leaf. With surfaceOnly, a leaf is decided per 2³ block and
+// only blocks the 0.5 surface can pass within one voxel of are evaluated; the rest are filled
+// by side (1 inside, background outside), which is all a mesher needs. The decision for a leaf
+// depends only on the primitives that reach it, and sums are exact fixed-point integers, so an
+// edit recomputes only the leaves the changed primitives reach before or after — with keepSums,
+// correcting each stored sum by those primitives alone — and equals a full rebuild voxel for
+// voxel.
 #pragma once
 #include "vdbsurf/density/scene.h"
 #include "vdbsurf/vdb/openvdb_fwd.h"
@@ -23,6 +25,9 @@ class CancelToken;
 struct RasterOptions {
     double voxelSize = 0;
     bool surfaceOnly = false;
+    // Keep each evaluated voxel's fixed-point sum (8 bytes a voxel, as long as the raster lives)
+    // so that update() corrects it by the changed primitives alone instead of summing them all.
+    bool keepSums = false;
     const CancelToken* cancel = nullptr;
 };
 
@@ -31,7 +36,8 @@ struct RasterStats {
     std::uint64_t leafTiles = 0;       // 8³ constant tiles
     std::uint64_t leavesDecided = 0;   // leaves whose bounds were asked
     std::uint64_t leavesEvaluated = 0; // leaves whose voxels were computed
-    std::uint64_t voxelsEvaluated = 0;
+    std::uint64_t voxelsEvaluated = 0; // voxels whose sum was computed from every primitive
+    std::uint64_t voxelsUpdated = 0;   // edits with keepSums: voxels corrected by the changed ones
     std::uint64_t leavesRecomputed = 0; // edits: leaves in the old and new influence
     double seconds = 0;
 };
@@ -50,7 +56,7 @@ public:
     const RasterStats& stats() const; // of the last build or edit
 
     // Makes the grid that of `edited`: recomputes only the leaves reached by the old or new
-    // influence of the primitives that differ (all, when unchanged primitives were reordered).
+    // influence of the primitives that differ (reordering or renaming the others changes nothing).
     const RasterStats& update(const DensityScene& edited);
 
     struct Impl;

@@ -8,6 +8,14 @@
 namespace vdbsurf {
 
 namespace {
+// One primitive's density bounds as signed fixed-point terms, rounded outwards: every
+// contribution() within them rounds to a value inside (a subtraction's upper bound lowers the
+// sum's lower one).
+FixedInterval signedFixedBounds(double lo, double hi, DensityOp op) {
+    const FixedDensity a = FixedDensity(std::floor(lo * kFixedPerUnit)), b = FixedDensity(std::ceil(hi * kFixedPerUnit));
+    return op == DensityOp::Add ? FixedInterval{a, b} : FixedInterval{-b, -a};
+}
+
 bool overlaps(const Box3& a, const Box3& b) {
     return a.min.x <= b.max.x && a.min.y <= b.max.y && a.min.z <= b.max.z && b.min.x <= a.max.x && b.min.y <= a.max.y &&
            b.min.z <= a.max.z;
@@ -24,6 +32,12 @@ DensityScene::DensityScene(std::vector<Primitive> primitives, std::string source
         mDomain = any ? Box3{vmin(mDomain.min, b.min), vmax(mDomain.max, b.max)} : b;
         any = true;
     }
+    if (mPrimitives.size() > (std::size_t(1) << 20)) // with weights ≤ kMaxWeight, fixed-point sums stay in 63 bits
+        throw Error(mSource, "has " + std::to_string(mPrimitives.size()) + " primitives; at most 1048576 are supported");
+    for (std::size_t i = 0; i < mPrimitives.size(); ++i)
+        if (!(mPrimitives[i].weight > 0 && mPrimitives[i].weight <= kMaxWeight))
+            throw Error(mSource, "primitive " + std::to_string(i) + ": weight must be positive and at most " +
+                                     std::to_string(int(kMaxWeight)));
     // Only added density can reach 0.5: a scene of subtractions alone has no surface.
     if (!any) throw Error(mSource, "has no primitive with op \"add\", so it has no surface");
 }
@@ -34,16 +48,29 @@ LatticeFrame DensityScene::naturalFrame(double h) const {
     return {Vec3d(std::floor(mDomain.min.x / h), std::floor(mDomain.min.y / h), std::floor(mDomain.min.z / h)) * h, h};
 }
 
-double DensityScene::sum(const Vec3d& p) const {
-    double s = 0;
-    for (const PreparedPrimitive& q : mPrepared) s += q.sign() * q.density(p);
+FixedDensity DensityScene::contribution(std::uint32_t i, const Vec3d& p) const {
+    const FixedDensity c = std::llrint(mPrepared[i].density(p) * kFixedPerUnit);
+    return mPrimitives[i].op == DensityOp::Add ? c : -c;
+}
+
+FixedDensity DensityScene::fixedSum(const Vec3d& p, const std::vector<std::uint32_t>& among) const {
+    FixedDensity s = 0;
+    for (std::uint32_t i : among) s += contribution(i, p);
     return s;
 }
 
-double DensityScene::sum(const Vec3d& p, const std::vector<std::uint32_t>& among) const {
-    double s = 0;
-    for (std::uint32_t i : among) s += mPrepared[i].sign() * mPrepared[i].density(p);
-    return s;
+double DensityScene::sum(const Vec3d& p) const {
+    FixedDensity s = 0;
+    for (std::uint32_t i = 0; i < mPrepared.size(); ++i) s += contribution(i, p);
+    return fromFixed(s);
+}
+
+double DensityScene::sum(const Vec3d& p, const std::vector<std::uint32_t>& among) const { return fromFixed(fixedSum(p, among)); }
+
+FixedInterval DensityScene::contributionBoundsAround(std::uint32_t i, const Vec3d& centre, double radius) const {
+    double lo, hi;
+    mPrepared[i].densityBoundsAround(centre, radius, lo, hi);
+    return signedFixedBounds(lo, hi, mPrimitives[i].op);
 }
 
 double DensityScene::value(const Vec3d& p) const { return clampDensity(sum(p)); }
@@ -62,33 +89,30 @@ void DensityScene::primitivesTouching(const Box3& box, std::vector<std::uint32_t
         if (overlaps(mPrepared[i].influenceBox(), box)) out.push_back(i);
 }
 
-namespace {
-// Signed sum of per-primitive density bounds: a subtraction's upper bound lowers the sum's lower.
-template <class PrimitiveBounds>
-Interval sumBounds(const std::vector<PreparedPrimitive>& prepared, const std::vector<std::uint32_t>& among, PrimitiveBounds&& of) {
-    double lo = 0, hi = 0;
-    for (std::uint32_t i : among) {
-        double a, b;
-        of(prepared[i], a, b);
-        if (prepared[i].primitive().op == DensityOp::Add) {
-            lo += a;
-            hi += b;
-        } else {
-            lo -= b;
-            hi -= a;
-        }
-    }
-    return {clampDensity(lo), clampDensity(hi)};
-}
-} // namespace
-
 Interval DensityScene::bounds(const Box3& box, const std::vector<std::uint32_t>& among) const {
-    return sumBounds(mPrepared, among, [&](const PreparedPrimitive& p, double& lo, double& hi) { p.densityBounds(box, lo, hi); });
+    FixedInterval sum;
+    for (std::uint32_t i : among) {
+        double lo, hi;
+        mPrepared[i].densityBounds(box, lo, hi);
+        const FixedInterval t = signedFixedBounds(lo, hi, mPrimitives[i].op);
+        sum.lo += t.lo;
+        sum.hi += t.hi;
+    }
+    return {clampDensity(fromFixed(sum.lo)), clampDensity(fromFixed(sum.hi))};
 }
 
-Interval DensityScene::boundsAround(const Vec3d& centre, double radius, const std::vector<std::uint32_t>& among) const {
-    return sumBounds(mPrepared, among,
-                     [&](const PreparedPrimitive& p, double& lo, double& hi) { p.densityBoundsAround(centre, radius, lo, hi); });
+Interval DensityScene::boundsReaching(const Box3& box, std::vector<std::uint32_t>& reaching) const {
+    reaching.clear();
+    FixedInterval sum;
+    for (std::uint32_t i = 0; i < mPrepared.size(); ++i) {
+        double lo, hi;
+        if (!mPrepared[i].reaches(box, lo, hi)) continue;
+        reaching.push_back(i);
+        const FixedInterval t = signedFixedBounds(lo, hi, mPrimitives[i].op);
+        sum.lo += t.lo;
+        sum.hi += t.hi;
+    }
+    return {clampDensity(fromFixed(sum.lo)), clampDensity(fromFixed(sum.hi))};
 }
 
 Interval DensityScene::bounds(const Box3& box) const {

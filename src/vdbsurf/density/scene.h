@@ -6,11 +6,26 @@
 #include "vdbsurf/density/primitive.h"
 #include "vdbsurf/field/field.h"
 
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace vdbsurf {
+
+// Sums of primitives are kept in fixed point, in units of 2^-32 of density: each primitive's
+// contribution is rounded once, so a sum is exact and does not depend on the order of its terms.
+// That is what lets an edit take one primitive's old contribution out of a stored sum and put
+// its new one in, and get bit for bit what summing afresh gives. 2^-32 is far below a float's
+// step at 0.5 (2^-25), and weights of at most kMaxWeight keep any scene's sum inside 63 bits.
+using FixedDensity = std::int64_t;
+struct FixedInterval {
+    FixedDensity lo = 0, hi = 0;
+};
+constexpr double kFixedPerUnit = 4294967296.0; // 2^32
+constexpr FixedDensity kFixedHalf = FixedDensity(1) << 31;
+constexpr double kMaxWeight = 1000;
+inline double fromFixed(FixedDensity f) { return double(f) / kFixedPerUnit; }
 
 class DensityScene final : public Field {
 public:
@@ -32,7 +47,14 @@ public:
     void primitivesTouching(const Box3& box, std::vector<std::uint32_t>& out) const;
     double sum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
     Interval bounds(const Box3& box, const std::vector<std::uint32_t>& among) const;
-    Interval boundsAround(const Vec3d& centre, double radius, const std::vector<std::uint32_t>& among) const;
+    // Bounds over a box from every primitive, listing those that reach it (PreparedPrimitive::reaches).
+    Interval boundsReaching(const Box3& box, std::vector<std::uint32_t>& reaching) const;
+
+    // Fixed-point terms: primitive i's signed contribution at p, their sum over `among`, and
+    // the signed bounds of primitive i over a ball (rounded outwards, so still conservative).
+    FixedDensity contribution(std::uint32_t i, const Vec3d& p) const;
+    FixedDensity fixedSum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
+    FixedInterval contributionBoundsAround(std::uint32_t i, const Vec3d& centre, double radius) const;
 
     const std::vector<Primitive>& primitives() const { return mPrimitives; }
     const std::vector<PreparedPrimitive>& prepared() const { return mPrepared; }

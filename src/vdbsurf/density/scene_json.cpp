@@ -74,7 +74,9 @@ Primitive parsePrimitive(const json& j, std::size_t index, const std::string& so
     if (!(p.falloff > 0)) throw w.error("falloff", "must be positive (the width of the influence beyond the core), not " + shortDump(j["falloff"]));
     if (j.contains("weight")) {
         p.weight = number(w, j["weight"], "weight");
-        if (!(p.weight > 0)) throw w.error("weight", "must be positive, not " + shortDump(j["weight"]));
+        if (!(p.weight > 0) || !(p.weight <= kMaxWeight))
+            throw w.error("weight", "must be positive and at most " + std::to_string(int(kMaxWeight)) +
+                                        " (the surface is at 0.5 and sums clamp at 1), not " + shortDump(j["weight"]));
     }
     if (j.contains("op")) {
         const json& op = j["op"];
