@@ -103,6 +103,7 @@ PreparedPrimitive::PreparedPrimitive(const Primitive& p) : mP(p) {
     mCoreBox = {p.center - half, p.center + half};
     mMinRadius = std::min({p.size.x, p.size.y, p.size.z});
     mInverseRadii = {1.0 / p.size.x, 1.0 / p.size.y, 1.0 / p.size.z};
+    mSphere = p.core == CoreShape::Ellipsoid && p.size.x == p.size.y && p.size.y == p.size.z;
     const Vec3d grow(p.falloff, p.falloff, p.falloff);
     mInfluence = {mCoreBox.min - grow, mCoreBox.max + grow};
 }
@@ -141,6 +142,7 @@ double PreparedPrimitive::coreDistance(const Vec3d& p, Vec3d& gradient) const {
 
 double PreparedPrimitive::coreDistance(const Vec3d& p) const {
     // As coreDistance(p, gradient) without the gradient: this one runs per voxel.
+    if (mSphere) return std::max(0.0, length(p - mP.center) - mP.size.x);
     const Vec3d q = toLocal(p);
     if (mP.core == CoreShape::Box) return length(boxExcess(q));
     Vec3d closest;
@@ -170,6 +172,10 @@ bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
 double PreparedPrimitive::density(const Vec3d& p) const {
     // The hot path of rasterization: beyondFalloff and coreDistance, sharing one toLocal.
     if (!mInfluence.contains(p)) return 0.0;
+    if (mSphere) { // no rotation, no root: the distance is along the radius
+        const double d = length(p - mP.center) - mP.size.x;
+        return d <= 0 ? mP.weight : mP.weight * falloffValue(d / mP.falloff);
+    }
     const Vec3d q = toLocal(p);
     double d;
     if (mP.core == CoreShape::Box) {

@@ -76,6 +76,7 @@ private:
     Box3 mInfluence, mCoreBox;
     double mMinRadius = 0;
     Vec3d mInverseRadii;
+    bool mSphere = false; // an ellipsoid with equal radii: distances without rotation or root
 };
 
 // Exact distance from a point to the surface of an axis-aligned ellipsoid (radii r, centred at

@@ -200,11 +200,12 @@ struct DensityRaster::Impl {
         return r;
     }
 
-    void apply(LeafResult& r) {
+    // Puts a leaf's result in the tree; `replacing` when the tree may hold something there.
+    void apply(LeafResult& r, bool replacing) {
         auto& tree = grid->tree();
         switch (r.fill) {
         case Fill::Empty:
-            if (tree.probeConstLeaf(r.origin) || tree.isValueOn(r.origin) || tree.getValue(r.origin) != 0.0f)
+            if (replacing && (tree.probeConstLeaf(r.origin) || tree.isValueOn(r.origin) || tree.getValue(r.origin) != 0.0f))
                 tree.addTile(1, r.origin, 0.0f, false);
             break;
         case Fill::Full:
@@ -217,7 +218,7 @@ struct DensityRaster::Impl {
             break;
         }
         if (r.sums) sums[r.origin] = std::move(r.sums);
-        else if (!sums.empty()) sums.erase(r.origin);
+        else if (replacing) sums.erase(r.origin);
         stats.voxelsEvaluated += r.voxels;
         stats.voxelsUpdated += r.updated;
     }
@@ -237,16 +238,16 @@ struct DensityRaster::Impl {
         });
     }
 
-    // Leaf origins whose reach the world box touches.
-    void leavesIn(const Box3& world, std::vector<Coord>& out) const {
+    // Origins of the n³ blocks (leaves, nodes) holding a leaf whose reach the world box touches.
+    void blocksIn(const Box3& world, int n, std::vector<Coord>& out) const {
         const int grow = reachGrow();
-        auto lo = [&](double v) { return int(std::floor(v / h())) - grow; };
+        auto lo = [&](double v) { return (int(std::floor(v / h())) - grow) & ~(n - 1); };
         auto hi = [&](double v) { return int(std::ceil(v / h())) + grow; };
-        const Coord a(lo(world.min.x) & ~(kLeaf - 1), lo(world.min.y) & ~(kLeaf - 1), lo(world.min.z) & ~(kLeaf - 1));
+        const Coord a(lo(world.min.x), lo(world.min.y), lo(world.min.z));
         const Coord b(hi(world.max.x), hi(world.max.y), hi(world.max.z));
-        for (int x = a.x(); x <= b.x(); x += kLeaf)
-            for (int y = a.y(); y <= b.y(); y += kLeaf)
-                for (int z = a.z(); z <= b.z(); z += kLeaf) out.emplace_back(x, y, z);
+        for (int x = a.x(); x <= b.x(); x += n)
+            for (int y = a.y(); y <= b.y(); y += n)
+                for (int z = a.z(); z <= b.z(); z += n) out.emplace_back(x, y, z);
     }
 
     void build() {
@@ -260,12 +261,8 @@ struct DensityRaster::Impl {
 
         // The 128³ nodes that added density reaches (subtraction alone makes none).
         std::vector<Coord> nodes;
-        for (const PreparedPrimitive& p : scene.prepared()) {
-            if (p.primitive().op != DensityOp::Add) continue;
-            std::vector<Coord> leaves;
-            leavesIn(p.influenceBox(), leaves);
-            for (const Coord& c : leaves) nodes.emplace_back(c.x() & ~(kNode - 1), c.y() & ~(kNode - 1), c.z() & ~(kNode - 1));
-        }
+        for (const PreparedPrimitive& p : scene.prepared())
+            if (p.primitive().op == DensityOp::Add) blocksIn(p.influenceBox(), kNode, nodes);
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
 
@@ -304,7 +301,7 @@ struct DensityRaster::Impl {
                 ++stats.nodeTiles;
                 continue;
             }
-            for (auto r = first; r != last; ++r) apply(*r);
+            for (auto r = first; r != last; ++r) apply(*r, false);
         }
         stats.seconds = since(t0);
     }
@@ -334,7 +331,7 @@ struct DensityRaster::Impl {
         std::vector<Coord> origins;
         auto reached = [&](const PreparedPrimitive& p) {
             std::vector<Coord> leaves;
-            leavesIn(p.influenceBox(), leaves);
+            blocksIn(p.influenceBox(), kLeaf, leaves);
             double lo, hi;
             for (const Coord& c : leaves)
                 if (p.reaches(reachBox(c), lo, hi)) origins.push_back(c);
@@ -349,7 +346,7 @@ struct DensityRaster::Impl {
         change.before = &old;
         std::vector<LeafResult> results;
         computeLeaves(origins, results, &change);
-        for (LeafResult& r : results) apply(r);
+        for (LeafResult& r : results) apply(r, true);
         stats.leavesDecided = stats.leavesRecomputed = origins.size();
         stats.seconds = since(t0);
     }
