@@ -34,8 +34,10 @@ struct EditOptions {
 
 std::string describe(const RasterStats& s) {
     std::ostringstream o;
-    o << s.leavesEvaluated << " leaves evaluated (" << s.voxelsEvaluated << " voxels), " << s.leafTiles << " leaf tiles, "
-      << s.nodeTiles << " 128^3 tiles, " << s.seconds << " s";
+    o << s.leavesEvaluated << " leaves evaluated (" << s.voxelsEvaluated << " voxels summed";
+    // An edit corrects a voxel by the changed primitives alone where nothing else reaches it.
+    if (s.voxelsUpdated) o << ", " << s.voxelsUpdated << " corrected by the changed primitives";
+    o << "), " << s.leafTiles << " leaf tiles, " << s.nodeTiles << " 128^3 tiles, " << s.seconds << " s";
     return o.str();
 }
 
