@@ -98,25 +98,45 @@ bool anyActiveNode(Accessor& acc, const Coord& origin) {
 std::uint64_t markReversedPairs(const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
                                 const std::vector<std::uint8_t>& welded, std::vector<std::uint8_t>& drop) {
     drop.assign(offsets.size() - 1, 0);
-    // (polygon rotated to its lowest vertex, polygon), sorted: a reversed twin is found by search.
-    std::vector<std::pair<std::vector<std::uint32_t>, std::uint32_t>> keyed;
+    // Polygons rotated to their lowest vertex, in one flat array, sorted by (loop, polygon): a
+    // reversed twin is found by search (no vector a polygon: there are tens of thousands).
+    std::vector<std::uint32_t> flat;
+    struct Keyed {
+        std::uint32_t start, size, polygon;
+    };
+    std::vector<Keyed> keyed;
     for (std::uint32_t f = 0; f + 1 < offsets.size(); ++f) {
         const auto first = indices.begin() + offsets[f], last = indices.begin() + offsets[f + 1];
         if (std::none_of(first, last, [&](std::uint32_t v) { return welded[v] != 0; })) continue;
-        std::vector<std::uint32_t> key(first, last);
-        std::rotate(key.begin(), std::min_element(key.begin(), key.end()), key.end());
-        keyed.emplace_back(std::move(key), f);
+        const auto lowest = std::min_element(first, last);
+        keyed.push_back({std::uint32_t(flat.size()), std::uint32_t(last - first), f});
+        flat.insert(flat.end(), lowest, last);
+        flat.insert(flat.end(), first, lowest);
     }
-    std::sort(keyed.begin(), keyed.end());
+    auto loopOf = [&](const Keyed& k) { return std::make_pair(flat.begin() + k.start, flat.begin() + k.start + k.size); };
+    auto loopLess = [](auto x0, auto x1, auto y0, auto y1) { return std::lexicographical_compare(x0, x1, y0, y1); };
+    std::sort(keyed.begin(), keyed.end(), [&](const Keyed& x, const Keyed& y) {
+        const auto [x0, x1] = loopOf(x);
+        const auto [y0, y1] = loopOf(y);
+        if (loopLess(x0, x1, y0, y1)) return true;
+        if (loopLess(y0, y1, x0, x1)) return false;
+        return x.polygon < y.polygon;
+    });
     std::uint64_t marked = 0;
-    for (const auto& [key, f] : keyed) {
-        if (drop[f]) continue;
-        std::vector<std::uint32_t> reversed(key.rbegin(), key.rend());
+    std::vector<std::uint32_t> reversed;
+    for (const Keyed& k : keyed) {
+        if (drop[k.polygon]) continue;
+        const auto [k0, k1] = loopOf(k);
+        reversed.assign(std::make_reverse_iterator(k1), std::make_reverse_iterator(k0));
         std::rotate(reversed.begin(), std::min_element(reversed.begin(), reversed.end()), reversed.end());
-        auto it = std::lower_bound(keyed.begin(), keyed.end(), std::make_pair(reversed, std::uint32_t(0)));
-        for (; it != keyed.end() && it->first == reversed; ++it)
-            if (it->second != f && !drop[it->second]) {
-                drop[f] = drop[it->second] = 1;
+        auto it = std::lower_bound(keyed.begin(), keyed.end(), reversed, [&](const Keyed& x, const std::vector<std::uint32_t>& r) {
+            const auto [x0, x1] = loopOf(x);
+            return loopLess(x0, x1, r.begin(), r.end());
+        });
+        for (; it != keyed.end() && std::equal(flat.begin() + it->start, flat.begin() + it->start + it->size, reversed.begin(), reversed.end());
+             ++it)
+            if (it->polygon != k.polygon && !drop[it->polygon]) {
+                drop[k.polygon] = drop[it->polygon] = 1;
                 marked += 2;
                 break;
             }
@@ -376,14 +396,17 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
     std::vector<std::uint32_t> remap(mesh.points.size());
     for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
     std::vector<std::uint8_t> isRep(mesh.points.size(), 0);
+    std::vector<std::uint32_t> repOf(atNode.size());
+    for (std::size_t k = 0; k < atNode.size(); ++k) repOf[k] = representative.at(atNode[k].second);
     std::unordered_map<Coord, bool> keepApart;
     for (int attempt = 0;; ++attempt) {
-        for (const auto& [v, node] : atNode) remap[v] = v, isRep[representative.at(node)] = 0;
+        for (std::size_t k = 0; k < atNode.size(); ++k) remap[atNode[k].first] = atNode[k].first, isRep[repOf[k]] = 0;
         std::unordered_map<std::uint32_t, Coord> nodeOfRep;
         std::uint64_t welded = 0;
-        for (const auto& [v, node] : atNode) {
-            if (keepApart.count(node)) continue;
-            const std::uint32_t rep = representative.at(node);
+        for (std::size_t k = 0; k < atNode.size(); ++k) {
+            const auto& [v, node] = atNode[k];
+            if (!keepApart.empty() && keepApart.count(node)) continue;
+            const std::uint32_t rep = repOf[k];
             if (rep != v) {
                 remap[v] = rep;
                 ++welded;
@@ -396,9 +419,9 @@ void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
         // The candidates' polygons after welding: loops [first[k], first[k + 1]) of (offsets, indices).
         std::vector<std::uint32_t> offsets{0}, indices, first{0};
         std::uint64_t collapsed = 0;
-        std::vector<std::uint32_t> poly;
+        std::vector<std::uint32_t> poly, clean; // reused: most loops need no split, so no allocation
         auto emitLoop = [&](auto&& self, const std::vector<std::uint32_t>& loop) -> void {
-            std::vector<std::uint32_t> clean;
+            clean.clear();
             for (std::uint32_t v : loop)
                 if (clean.empty() || clean.back() != v) clean.push_back(v);
             while (clean.size() > 1 && clean.front() == clean.back()) clean.pop_back();
