@@ -391,10 +391,14 @@ TEST_CASE("scene files: the documented form parses, and mistakes name the primit
     fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"center\": [1,2]}]}", "'center' must be an array of 3 numbers");
     fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"op\": \"union\"}]}", "'op' must be \"add\" or \"subtract\"");
     fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"weight\": -1}]}", "'weight' must be positive");
+    fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"weight\": 5000}]}", "primitive 0 (box): 'weight' must be positive and at most 1000");
     fails("{\"primitives\": [{\"core\": \"torus\"}]}", "'core' must be \"ellipsoid\" or \"box\"");
     fails("{\"primitives\": [{\"core\": \"box\", \"center\": [0,0,0], \"falloff\": 1}]}", "'half_extents' is missing");
     fails("{\"primitives\": [], \"units\": \"m\"}", "'units' is not a scene field");
     fails("{\"primitives\": []}", "no primitive with op \"add\"");
     fails("{\"primitives\": [{" + box1, "not valid JSON");
     fails("[1, 2]", "must be a JSON object");
+    // Scenes built in code are held to the fixed-point range too.
+    CHECK_THROWS_AS(DensityScene({ellipsoid({0, 0, 0}, {1, 1, 1}, 0.5, {}, DensityOp::Add, 5000)}, "api"), Error);
+    CHECK_NOTHROW(DensityScene({ellipsoid({0, 0, 0}, {1, 1, 1}, 0.5, {}, DensityOp::Add, 1000)}, "api"));
 }
