@@ -1,7 +1,8 @@
 // bench_density: seed 003's experiment on this machine. One scene of three primitives (the
 // paper's experiment shape: two ellipsoids and a box), at 128³ and 512³ over its bounding box:
 // dense evaluation of every voxel (the paper's "all space") against sparse rasterization and
-// --surface-only; a one-primitive edit against a full rebuild; 1 against 2 threads.
+// --surface-only; a one-primitive edit against a full rebuild; 1 against 2 threads. Then one
+// blob of a 40-primitive creature moved, edit against rebuild.
 #include "bench_support.h"
 
 #include "vdbsurf/core/threads.h"
@@ -10,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <cmath>
 #include <iostream>
 
 using namespace vdbsurf;
@@ -30,6 +32,59 @@ std::vector<Primitive> paperScene() {
     return {prim(CoreShape::Ellipsoid, {0, 0, 0}, {1.0, 0.6, 0.6}, 0.5, {0, 0, 30}),
             prim(CoreShape::Ellipsoid, {1.2, 0.8, 0}, {0.4, 0.4, 0.4}, 0.4),
             prim(CoreShape::Box, {0, -0.9, 0}, {0.9, 0.2, 0.6}, 0.4, {0, 20, 0})};
+}
+
+// A blobby creature a TD might build: 40 primitives (spheres, ellipsoids, a few boxes) along a
+// curling spine, overlapping their neighbours. Moving one of many shows how an edit scales with
+// what moved rather than with the scene.
+std::vector<Primitive> creatureScene() {
+    std::vector<Primitive> prims;
+    for (int i = 0; i < 40; ++i) {
+        const double t = i / 39.0, a = 5.0 * t;
+        const Vec3d c(2.0 * t - 1.0, 0.35 * std::sin(a), 0.35 * std::cos(a) - 0.35);
+        const double r = 0.12 + 0.06 * std::sin(3.0 * a);
+        if (i % 10 == 9) prims.push_back(prim(CoreShape::Box, c, {r, 0.6 * r, 0.8 * r}, 0.08, {10.0 * i, 7.0 * i, 0}));
+        else if (i % 3 == 0) prims.push_back(prim(CoreShape::Ellipsoid, c, {1.4 * r, r, 0.8 * r}, 0.1, {0, 0, 9.0 * i}));
+        else prims.push_back(prim(CoreShape::Ellipsoid, c, {r, r, r}, 0.1));
+    }
+    return prims;
+}
+
+void addRow(bench::Table& table, int n, const std::string& method, int threads, double seconds, std::uint64_t voxels,
+            std::uint64_t updated, std::uint64_t leaves, std::uint64_t tiles, double speedup, const std::string& against) {
+    table.add({std::to_string(n) + "^3", method, std::to_string(threads), bench::fixed(seconds, 4), std::to_string(voxels),
+               std::to_string(updated), std::to_string(leaves), std::to_string(tiles), bench::fixed(speedup, 1) + "x " + against},
+              {{"resolution", n}, {"method", method}, {"threads", threads}, {"seconds", seconds}, {"voxels_evaluated", voxels},
+               {"voxels_updated", updated}, {"leaves_evaluated", leaves}, {"tiles", tiles}, {"speedup", speedup},
+               {"speedup_against", against}});
+}
+
+// An edit from `before` to `after` against a full rebuild of `after`, 2 threads, both keeping
+// sums (what an interactive session holds): two rows.
+void editAgainstRebuild(bench::Table& table, const DensityScene& before, const DensityScene& after, int n, double h, bool surfaceOnly,
+                        int repeat, const std::string& what) {
+    ThreadLimit limit(2);
+    RasterOptions o;
+    o.voxelSize = h;
+    o.surfaceOnly = surfaceOnly;
+    o.keepSums = true;
+    RasterStats rebuildStats, editStats;
+    const bench::Measure rebuild = bench::measureMedian(repeat, [&] { rebuildStats = DensityRaster(after, o).stats(); });
+    std::vector<double> editTimes;
+    for (int r = 0; r < repeat; ++r) {
+        DensityRaster raster(before, o);
+        editStats = raster.update(after);
+        editTimes.push_back(editStats.seconds);
+    }
+    std::sort(editTimes.begin(), editTimes.end());
+    const double edit = editTimes[editTimes.size() / 2];
+    const std::string mode = surfaceOnly ? ", surface only" : "";
+    const RasterStats& r = rebuildStats;
+    const RasterStats& e = editStats;
+    addRow(table, n, "rebuild, " + what + mode, 2, rebuild.seconds, r.voxelsEvaluated, r.voxelsUpdated, r.leavesEvaluated,
+           r.leafTiles + r.nodeTiles, 1.0, "");
+    addRow(table, n, "edit, " + what + mode, 2, edit, e.voxelsEvaluated, e.voxelsUpdated, e.leavesEvaluated, e.leafTiles + e.nodeTiles,
+           rebuild.seconds / edit, "vs rebuild");
 }
 
 } // namespace
@@ -60,14 +115,9 @@ int main(int argc, char** argv) {
         Vec3i first, last;
         sceneVoxelRange(scene, h, first, last);
         const Vec3i dims = last - first + Vec3i(1, 1, 1);
-        const std::string res = std::to_string(n) + "^3";
         auto row = [&](const std::string& method, int threads, double seconds, std::uint64_t voxels, std::uint64_t leaves,
-                       std::uint64_t tiles, double speedup, const std::string& against, std::uint64_t updated = 0) {
-            table.add({res, method, std::to_string(threads), bench::fixed(seconds, 4), std::to_string(voxels), std::to_string(updated),
-                       std::to_string(leaves), std::to_string(tiles), bench::fixed(speedup, 1) + "x " + against},
-                      {{"resolution", n}, {"method", method}, {"threads", threads}, {"seconds", seconds}, {"voxels_evaluated", voxels},
-                       {"voxels_updated", updated}, {"leaves_evaluated", leaves}, {"tiles", tiles}, {"speedup", speedup},
-                       {"speedup_against", against}});
+                       std::uint64_t tiles, double speedup, const std::string& against) {
+            addRow(table, n, method, threads, seconds, voxels, 0, leaves, tiles, speedup, against);
         };
 
         std::vector<double> denseSeconds(3);
@@ -95,31 +145,20 @@ int main(int argc, char** argv) {
                     row(surfaceOnly ? "sparse, surface only" : "sparse", 2, m.seconds, st.voxelsEvaluated, st.leavesEvaluated,
                         st.leafTiles + st.nodeTiles, seconds[1] / m.seconds, "vs 1 thread");
             }
-            // One primitive moved: edit against a full rebuild of the edited scene, 2 threads, both
-            // keeping sums (what an interactive session holds).
-            ThreadLimit limit(2);
-            RasterOptions o;
-            o.voxelSize = h;
-            o.surfaceOnly = surfaceOnly;
-            o.keepSums = true;
-            RasterStats rebuildStats, editStats;
-            const bench::Measure rebuild = bench::measureMedian(repeat, [&] { rebuildStats = DensityRaster(edited, o).stats(); });
-            std::vector<double> editTimes;
-            for (int r = 0; r < repeat; ++r) {
-                DensityRaster raster(scene, o);
-                editStats = raster.update(edited);
-                editTimes.push_back(editStats.seconds);
-            }
-            std::sort(editTimes.begin(), editTimes.end());
-            const double edit = editTimes[editTimes.size() / 2];
-            const std::string mode = surfaceOnly ? ", surface only" : "";
-            row("rebuild after a move" + mode, 2, rebuild.seconds, rebuildStats.voxelsEvaluated, rebuildStats.leavesEvaluated,
-                rebuildStats.leafTiles + rebuildStats.nodeTiles, 1.0, "");
-            row("edit: one primitive moved" + mode, 2, edit, editStats.voxelsEvaluated, editStats.leavesEvaluated,
-                editStats.leafTiles + editStats.nodeTiles, rebuild.seconds / edit, "vs rebuild", editStats.voxelsUpdated);
+            editAgainstRebuild(table, scene, edited, n, h, surfaceOnly, repeat, "one primitive moved");
         }
     }
-    std::cout << "bench_density: the paper's 3-primitive scene; median of " << repeat << " runs (dense at 512^3: one run)\n";
+    // One blob of the 40-primitive creature moved: edit against rebuild, both modes.
+    const std::vector<Primitive> creature = creatureScene();
+    std::vector<Primitive> creatureMoved = creature;
+    creatureMoved[17].center = creatureMoved[17].center + Vec3d(0.03, -0.02, 0.02);
+    const DensityScene before(creature, "creature"), after(creatureMoved, "creature, one blob moved");
+    const Box3 cd = before.domain();
+    const int n = quick ? 128 : 512;
+    for (bool surfaceOnly : {false, true})
+        editAgainstRebuild(table, before, after, n, std::max({cd.extent().x, cd.extent().y, cd.extent().z}) / n, surfaceOnly, repeat,
+                           "creature (40), one blob moved");
+    std::cout << "bench_density: the paper's 3-primitive scene, and a 40-primitive creature for edits; median of " << repeat << " runs (dense at 512^3: one run)\n";
     table.print();
     if (!json.empty()) table.writeJson(json, "bench_density", {{"repeat", repeat}});
     return 0;
