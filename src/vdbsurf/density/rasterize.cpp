@@ -129,7 +129,8 @@ struct DensityRaster::Impl {
             }
         }
         auto leaf = std::make_unique<LeafT>(origin, 0.0f, false);
-        auto out = std::make_unique<LeafSums>();
+        // The sums an edit would need, only when they are kept (5 KB a leaf otherwise wasted).
+        std::unique_ptr<LeafSums> out = options.keepSums ? std::make_unique<LeafSums>() : nullptr;
         bool any = false;
         auto setExact = [&](const Coord& ijk) {
             const Vec3d p = Vec3d(ijk.x(), ijk.y(), ijk.z()) * h();
@@ -144,8 +145,10 @@ struct DensityRaster::Impl {
                 s = scene.fixedSum(p, among);
                 ++r.voxels;
             }
-            out->voxel[n] = s;
-            out->known.set(n);
+            if (out) {
+                out->voxel[n] = s;
+                out->known.set(n);
+            }
             const float v = float(clampDensity(fromFixed(s)));
             if (v > 0) {
                 leaf->setValueOn(ijk, v);
@@ -180,7 +183,7 @@ struct DensityRaster::Impl {
                         } else {
                             for (std::uint32_t q : among) add(scene.contributionBoundsAround(q, centre, radius), 1);
                         }
-                        out->blocks[index] = bounds;
+                        if (out) out->blocks[index] = bounds;
                         const Fill f = decide(bounds);
                         for (int a = 0; a < kBlock; ++a)
                             for (int c = 0; c < kBlock; ++c)
@@ -194,7 +197,7 @@ struct DensityRaster::Impl {
                                 }
                     }
         }
-        if (options.keepSums) r.sums = std::move(out);
+        r.sums = std::move(out);
         if (any) r.leaf = std::move(leaf);
         else r.fill = Fill::Empty;
         return r;
