@@ -160,32 +160,32 @@ double PreparedPrimitive::scaledRadius(const Vec3d& q) const {
     return length(Vec3d(q.x * mInverseRadii.x, q.y * mInverseRadii.y, q.z * mInverseRadii.z));
 }
 
-bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
-    if (!mInfluence.contains(p)) return true;
-    if (mP.core == CoreShape::Box) return false; // its exact distance is as cheap as a bound
+double PreparedPrimitive::distanceLowerBound(double scaled) const {
     // With p = A·u (A the radii), every core point is A·x with |x| ≤ 1, so the distance is at
     // least r_min·(|u| - 1): a cheap test that spares the root finding in the influence box's
     // corners, far from the ellipsoid.
-    return mMinRadius * (scaledRadius(toLocal(p)) - 1.0) >= mP.falloff;
+    return mMinRadius * (scaled - 1.0);
+}
+
+bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
+    if (!mInfluence.contains(p)) return true;
+    if (mP.core == CoreShape::Box) return false; // its exact distance is as cheap as a bound
+    return distanceLowerBound(scaledRadius(toLocal(p))) >= mP.falloff;
 }
 
 double PreparedPrimitive::density(const Vec3d& p) const {
-    // The hot path of rasterization: beyondFalloff and coreDistance, sharing one toLocal.
     if (!mInfluence.contains(p)) return 0.0;
-    if (mSphere) { // no rotation, no root: the distance is along the radius
-        const double d = length(p - mP.center) - mP.size.x;
-        return d <= 0 ? mP.weight : mP.weight * falloffValue(d / mP.falloff);
-    }
-    const Vec3d q = toLocal(p);
     double d;
-    if (mP.core == CoreShape::Box) {
-        d = length(boxExcess(q));
-    } else {
+    if (mP.core == CoreShape::Ellipsoid && !mSphere) {
+        // The hot path of rasterization: the core and far tests before the root, on one toLocal.
+        const Vec3d q = toLocal(p);
         const double u = scaledRadius(q);
-        if (u <= 1.0) return mP.weight; // in the core
-        if (mMinRadius * (u - 1.0) >= mP.falloff) return 0.0;
+        if (u <= 1.0) return mP.weight;
+        if (distanceLowerBound(u) >= mP.falloff) return 0.0;
         Vec3d closest;
         d = ellipsoidDistance(mP.size, q, closest);
+    } else {
+        d = coreDistance(p); // spheres and boxes: the exact distance is as cheap as any test
     }
     return mP.weight * falloffValue(d / mP.falloff);
 }
@@ -227,10 +227,7 @@ void PreparedPrimitive::densityBoundsAround(const Vec3d& c, double radius, doubl
         c.x - radius > mInfluence.max.x || c.y - radius > mInfluence.max.y || c.z - radius > mInfluence.max.z)
         return;
     const double slack = radius * (1 + 1e-12) + 1e-12; // the caller's ball is from rounded voxel positions
-    if (mP.core == CoreShape::Ellipsoid) { // the cheap lower bound of beyondFalloff, first
-        const Vec3d q = toLocal(c);
-        if (mMinRadius * (scaledRadius(q) - 1.0) - slack >= mP.falloff) return;
-    }
+    if (mP.core == CoreShape::Ellipsoid && distanceLowerBound(scaledRadius(toLocal(c))) - slack >= mP.falloff) return;
     const double d = coreDistance(c);
     lo = mP.weight * falloffValue((d + slack) / mP.falloff);
     hi = mP.weight * falloffValue(std::max(0.0, d - slack) / mP.falloff);

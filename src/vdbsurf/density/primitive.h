@@ -70,6 +70,7 @@ private:
     Vec3d toWorld(const Vec3d& v) const;
     bool beyondFalloff(const Vec3d& p) const; // a cheap sufficient test for density 0
     double scaledRadius(const Vec3d& local) const; // ellipsoids: |local / radii|, ≤ 1 in the core
+    double distanceLowerBound(double scaled) const; // ellipsoids: the distance is at least this
     Vec3d boxExcess(const Vec3d& local) const;  // box cores: how far past each face
     Primitive mP;
     double mR[3][3]; // local -> world rotation (columns: the local axes in world)

@@ -172,16 +172,12 @@ struct DensityRaster::Impl {
                         const Coord b = origin.offsetBy(i, j, k);
                         const Vec3d centre = (Vec3d(b.x(), b.y(), b.z()) + Vec3d(0.5, 0.5, 0.5) * (kBlock - 1)) * h();
                         FixedInterval bounds;
-                        auto add = [&bounds](const FixedInterval& t, int sign) {
-                            bounds.lo += sign * t.lo;
-                            bounds.hi += sign * t.hi;
-                        };
                         if (prev) {
                             bounds = prev->blocks[index];
-                            for (std::uint32_t q : removed) add(change->before->contributionBoundsAround(q, centre, radius), -1);
-                            for (std::uint32_t q : added) add(scene.contributionBoundsAround(q, centre, radius), 1);
+                            for (std::uint32_t q : removed) bounds -= change->before->contributionBoundsAround(q, centre, radius);
+                            for (std::uint32_t q : added) bounds += scene.contributionBoundsAround(q, centre, radius);
                         } else {
-                            for (std::uint32_t q : among) add(scene.contributionBoundsAround(q, centre, radius), 1);
+                            for (std::uint32_t q : among) bounds += scene.contributionBoundsAround(q, centre, radius);
                         }
                         if (out) out->blocks[index] = bounds;
                         const Fill f = decide(bounds);

@@ -16,6 +16,8 @@ FixedInterval signedFixedBounds(double lo, double hi, DensityOp op) {
     return op == DensityOp::Add ? FixedInterval{a, b} : FixedInterval{-b, -a};
 }
 
+Interval clampedInterval(const FixedInterval& sum) { return {clampDensity(fromFixed(sum.lo)), clampDensity(fromFixed(sum.hi))}; }
+
 bool overlaps(const Box3& a, const Box3& b) {
     return a.min.x <= b.max.x && a.min.y <= b.max.y && a.min.z <= b.max.z && b.min.x <= a.max.x && b.min.y <= a.max.y &&
            b.min.z <= a.max.z;
@@ -94,11 +96,9 @@ Interval DensityScene::bounds(const Box3& box, const std::vector<std::uint32_t>&
     for (std::uint32_t i : among) {
         double lo, hi;
         mPrepared[i].densityBounds(box, lo, hi);
-        const FixedInterval t = signedFixedBounds(lo, hi, mPrimitives[i].op);
-        sum.lo += t.lo;
-        sum.hi += t.hi;
+        sum += signedFixedBounds(lo, hi, mPrimitives[i].op);
     }
-    return {clampDensity(fromFixed(sum.lo)), clampDensity(fromFixed(sum.hi))};
+    return clampedInterval(sum);
 }
 
 Interval DensityScene::boundsReaching(const Box3& box, std::vector<std::uint32_t>& reaching) const {
@@ -108,11 +108,9 @@ Interval DensityScene::boundsReaching(const Box3& box, std::vector<std::uint32_t
         double lo, hi;
         if (!mPrepared[i].reaches(box, lo, hi)) continue;
         reaching.push_back(i);
-        const FixedInterval t = signedFixedBounds(lo, hi, mPrimitives[i].op);
-        sum.lo += t.lo;
-        sum.hi += t.hi;
+        sum += signedFixedBounds(lo, hi, mPrimitives[i].op);
     }
-    return {clampDensity(fromFixed(sum.lo)), clampDensity(fromFixed(sum.hi))};
+    return clampedInterval(sum);
 }
 
 Interval DensityScene::bounds(const Box3& box) const {

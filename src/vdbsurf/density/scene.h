@@ -21,6 +21,16 @@ namespace vdbsurf {
 using FixedDensity = std::int64_t;
 struct FixedInterval {
     FixedDensity lo = 0, hi = 0;
+    FixedInterval& operator+=(const FixedInterval& t) {
+        lo += t.lo;
+        hi += t.hi;
+        return *this;
+    }
+    FixedInterval& operator-=(const FixedInterval& t) { // takes a term out of a sum
+        lo -= t.lo;
+        hi -= t.hi;
+        return *this;
+    }
 };
 constexpr double kFixedPerUnit = 4294967296.0; // 2^32
 constexpr FixedDensity kFixedHalf = FixedDensity(1) << 31;
