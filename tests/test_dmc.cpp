@@ -102,6 +102,7 @@ constexpr double kH = 0.1;
 
 TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide are kept, closed, in one piece") {
     std::mt19937 rng(20261123);
+    int shellsApart = 0, shells = 0;
     std::uniform_real_distribution<double> jitter(-0.5 * kH, 0.5 * kH);
     for (double width : {0.2 * kH, 0.3 * kH, 0.5 * kH, 1.0 * kH}) {
         for (int trial = 0; trial < 2; ++trial) {
@@ -120,9 +121,7 @@ TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide ar
                 const Mesh m = meshFormula(f, kBox, kH);
                 INFO("plate of width " << width / kH << " H, normal " << n.x << " " << n.y << " " << n.z);
                 requireClosed(m);
-                // Target: one piece. A sliver can still come off where the plate only grazes a
-                // node's cell (see the [!mayfail] cases below); more than one is a regression.
-                CHECK(countComponents(m) <= 2);
+                CHECK(countComponents(m) == 1);
                 CHECK(coverage(m, truth, kH) >= 0.99);
             }
             // A rod (cylinder of diameter `width`) along n, capped by a sphere.
@@ -136,8 +135,10 @@ TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide ar
                     truth.push_back(c + n * t + (a * std::cos(phi) + b * std::sin(phi)) * (width / 2));
                 }
                 const Mesh m = meshFormula(f, kBox, kH);
-                INFO("rod of width " << width / kH << " H, axis " << n.x << " " << n.y << " " << n.z << ", centre " << num(c.x) << num(c.y) << num(c.z));
+                INFO("rod of width " << width / kH << " H: " << f);
                 requireClosed(m);
+                // Target: one piece. Where a rod passes between lattice nodes without crossing an
+                // edge, its chain of nodes can still break (2 of these 8 rods); more is a regression.
                 CHECK(countComponents(m) <= 2);
                 CHECK(coverage(m, truth, kH) >= 0.99);
             }
@@ -150,13 +151,21 @@ TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide ar
                     truth.push_back(c + d * (R + (i % 2 ? 1 : -1) * width / 2));
                 }
                 const Mesh m = meshFormula(f, kBox, kH);
-                INFO("shell of width " << width / kH << " H");
+                INFO("shell of width " << width / kH << " H: " << f);
                 requireClosed(m);
-                CHECK(countComponents(m) <= 2); // outer and inner surface
+                const std::size_t pieces = countComponents(m);
+                CHECK(pieces <= 2); // outer and inner surface
+                shellsApart += pieces == 2;
+                ++shells;
                 CHECK(coverage(m, truth, kH) >= 0.99);
             }
         }
     }
+    // Edges and face diagonals that hide the sheet get a node in it (hidden_edges.h): the inner
+    // and outer surfaces come out apart on all but one of these shells (a node bridging moved into
+    // the cavity leaves a face diagonal only it could fix; see issue 4's closing note).
+    INFO(shellsApart << " of " << shells << " shells come out as two surfaces");
+    CHECK(shellsApart >= shells - 1);
 }
 
 TEST_CASE("a crack thinner than a cell inside a solid comes out (concave thin part)") {
@@ -380,11 +389,14 @@ TEST_CASE("DMC output is byte-identical at 1 and 2 threads") {
     std::string files[2];
     for (int threads : {1, 2}) {
         ThreadLimit limit(threads);
-        const Mesh m = meshFormula("min(max(x^2+y^2+z^2-0.81, 0.78-x^2-y^2-z^2, y), max(abs(x)-0.6,abs(y-0.3)-0.6,abs(z)-0.6))",
-                                   kBox, kH);
-        const std::string path = dir.path("t" + std::to_string(threads) + ".obj");
-        writeMesh(path, m);
-        files[threads - 1] = test::readFile(path);
+        // A thin half shell on a box, and a crack through a ball (many hidden edges, many rounds).
+        for (const char* formula : {"min(max(x^2+y^2+z^2-0.81, 0.78-x^2-y^2-z^2, y), max(abs(x)-0.6,abs(y-0.3)-0.6,abs(z)-0.6))",
+                                    "max(sqrt(x^2+y^2+z^2)-0.8, 0.015-abs(0.48*x+0.6*y+0.64*z-0.013))"}) {
+            const Mesh m = meshFormula(formula, kBox, kH);
+            const std::string path = dir.path("t" + std::to_string(threads) + ".obj");
+            writeMesh(path, m);
+            files[threads - 1] += test::readFile(path);
+        }
     }
     CHECK(files[0].size() > 1000);
     CHECK(files[0] == files[1]);
@@ -405,17 +417,17 @@ TEST_CASE("DMC with thin search and sharp features off is plain marching cubes, 
     CHECK_FALSE(flat.points == sharp.points);
 }
 
-// Known shortfalls, kept visible: a lattice edge that crosses a thin part with neither end in
-// it still joins what the part separates (a crack leaves the halves joined), and a part that
-// only grazes a node's cell can leave a sliver apart. These report until the edge rule lands.
-TEST_CASE("a spherical shell 0.3 H thick keeps its inner and outer surfaces apart", "[!mayfail]") {
-    // Fails today: a cell with its two inside corners on a body diagonal and the other six on both
-    // sides of the sheet joins them around the diagonal (see issue 4's closing note).
+TEST_CASE("a spherical shell 0.3 H thick keeps its inner and outer surfaces apart") {
+    // Lattice edges and face diagonals from the cavity to the outside cross the sheet with both
+    // ends outside; without the hidden-edge phase marching cubes joins the two sides there.
     const Mesh dmc = meshFormula("abs(sqrt((x-0.01)^2+(y+0.02)^2+(z-0.03)^2)-0.7)-0.015", kBox, kH);
     requireClosed(dmc);
     CHECK(countComponents(dmc) == 2);
 }
 
+// Known shortfall, kept visible: near the rim, where the crack opens to the outside, one node per
+// cell cannot stand for the crack, the two halves and the outside at once, and the halves stay
+// joined there. Reports until that is solved.
 TEST_CASE("a crack separates the two halves of a ball", "[!mayfail]") {
     const std::string f = "max(sqrt(x^2+y^2+z^2)-0.8, 0.015-abs(0.48*x+0.6*y+0.64*z-0.013))";
     const Mesh dmc = meshFormula(f, kBox, kH);

@@ -3,6 +3,7 @@
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/progress.h"
+#include "vdbsurf/dmc/hidden_edges.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/leaf_nodes.h"
 #include "vdbsurf/lattice/lattice.h"
@@ -112,9 +113,7 @@ public:
     }
 
     // Strictly on the other side of a node whose side is `inside`: an iso value counts for neither.
-    bool otherSide(bool inside, double v) const {
-        return inside ? (mSide == Inside::Below ? v > mIso : v < mIso) : isInside(v, mIso, mSide);
-    }
+    bool otherSide(bool inside, double v) const { return isOtherSide(inside, v, mIso, mSide); }
 
     // The node's new offset, if its Ω holds samples on the other side. `around` holds the values
     // of the 3x3x3 nodes centred on it (x fastest).
@@ -195,7 +194,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     ThinSearchStats local;
     const LatticeFrame& frame = lattice.frame;
     const double iso = options.iso;
-        const OmegaSearch searcher(field, lattice, iso, options.steps);
+    const OmegaSearch searcher(field, lattice, iso, options.steps);
 
     // A field whose bounds over a cell are its corners' range has nothing hidden inside a cell.
     std::vector<Coord> candidates, ambiguous;
@@ -237,6 +236,14 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     for (const Coord& c : frontier) from.emplace_back(c.x(), c.y(), c.z());
     local.bridged = bridgeThinParts(field, lattice, options, deformation, from, &local.samples);
     local.nodesMoved += local.bridged;
+
+    // Phase 3: edges whose ends agree although a part crosses them.
+    HiddenEdgeStats hidden;
+    splitHiddenEdges(field, lattice, options, deformation, &hidden);
+    local.edgesSplit = hidden.edgesSplit;
+    local.bridged += hidden.bridged;
+    local.nodesMoved += hidden.edgesSplit + hidden.bridged;
+    local.samples += hidden.samples;
     local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats) *stats = local;
 }

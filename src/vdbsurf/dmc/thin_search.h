@@ -37,6 +37,7 @@ struct ThinSearchStats {
     std::uint64_t samples = 0;      // field evaluations spent searching
     std::uint64_t nodesMoved = 0;
     std::uint64_t bridged = 0;      // of those, moved to join a thin part's nodes across a diagonal
+    std::uint64_t edgesSplit = 0;   // of those, moved onto a part that crossed an edge between two nodes of one side
     double seconds = 0;
 };
 

@@ -34,6 +34,11 @@ enum class Inside { Below, Above };
 
 inline bool isInside(double v, double iso, Inside side) { return side == Inside::Below ? v < iso : v > iso; }
 
+// Strictly on the other side from a point whose side is `inside`: an iso value counts for neither.
+inline bool isOtherSide(bool inside, double v, double iso, Inside side) {
+    return inside ? (side == Inside::Below ? v > iso : v < iso) : isInside(v, iso, side);
+}
+
 class Field {
 public:
     virtual ~Field() = default;

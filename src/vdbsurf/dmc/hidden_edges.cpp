@@ -1,0 +1,361 @@
+#include "vdbsurf/dmc/hidden_edges.h"
+
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/dmc/leaf_nodes.h"
+#include "vdbsurf/dmc/thin_search.h"
+#include "vdbsurf/lattice/lattice.h"
+
+#include <openvdb/tree/LeafManager.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <stdexcept>
+#include <tuple>
+
+namespace vdbsurf {
+
+using openvdb::Coord;
+
+namespace {
+
+constexpr int kMaxRounds = 32;
+
+// The segments examined: lattice edges (kinds 0-2, along x, y, z) and face diagonals (kinds
+// 3-8), named by the end from which the step's first non-zero component is positive.
+constexpr int kStep[9][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 0}, {1, -1, 0}, {1, 0, 1}, {1, 0, -1}, {0, 1, 1}, {0, 1, -1}};
+constexpr int kSegmentKinds = 9;
+
+struct Edge {
+    Coord node;
+    int kind;
+    bool operator<(const Edge& o) const { return std::tie(node, kind) < std::tie(o.node, o.kind); }
+    bool operator==(const Edge& o) const { return node == o.node && kind == o.kind; }
+    Coord other() const { return node.offsetBy(kStep[kind][0], kStep[kind][1], kStep[kind][2]); }
+    bool diagonal() const { return kind >= 3; }
+    // A face diagonal's face has two more corners, one step along each of its axes.
+    Coord corner(int which) const {
+        int seen = 0, d[3] = {0, 0, 0};
+        for (int i = 0; i < 3; ++i)
+            if (kStep[kind][i] != 0 && seen++ == which) d[i] = kStep[kind][i];
+        return node.offsetBy(d[0], d[1], d[2]);
+    }
+};
+
+// The segment between two nodes one edge or one face diagonal apart.
+Edge segment(const Coord& p, const Coord& q) {
+    const Coord d = q - p;
+    const bool flip = d.x() < 0 || (d.x() == 0 && (d.y() < 0 || (d.y() == 0 && d.z() < 0)));
+    const Coord s = flip ? p - q : d;
+    for (int k = 0; k < kSegmentKinds; ++k)
+        if (s.x() == kStep[k][0] && s.y() == kStep[k][1] && s.z() == kStep[k][2]) return Edge{flip ? q : p, k};
+    throw std::logic_error("hidden edges: nodes are not one edge or face diagonal apart");
+}
+
+struct Move {
+    Coord node;
+    Vec3f offset;
+    Edge edge;
+    bool operator<(const Move& o) const {
+        return std::tie(node, offset.x, offset.y, offset.z, edge) < std::tie(o.node, o.offset.x, o.offset.y, o.offset.z, o.edge);
+    }
+};
+
+using OffsetAccessor = openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>;
+
+class EdgeExaminer {
+public:
+    EdgeExaminer(const Field& field, const Lattice& lattice, double iso, int steps)
+        : mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()), mSteps(steps),
+          mNodeLo(lattice.cellRange.min()), mNodeHi(lattice.cellRange.max().offsetBy(1)) {}
+
+    bool validNode(const Coord& c) const {
+        return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&
+               c.y() <= mNodeHi.y() && c.z() <= mNodeHi.z();
+    }
+
+    double rest(const Coord& c) const {
+        double v = 0;
+        mField.sampleNodes(mFrame, {c.x(), c.y(), c.z()}, {1, 1, 1}, nullptr, &v);
+        return v;
+    }
+
+    // The move a segment asks for, if it hides a part that marching cubes would miss: an edge
+    // whose ends' sides do not explain its runs, or the outside diagonal of a face whose inside
+    // corners lie on the other diagonal (marching cubes joins the outside corners there).
+    // restAt(node) gives a node's value at its rest place.
+    template <typename RestAt>
+    std::optional<Move> examine(const Edge& e, const RestAt& restAt, OffsetAccessor& offsets, std::uint64_t& examined,
+                                std::uint64_t& evaluated) const {
+        const Coord a = e.node, b = e.other();
+        openvdb::Vec3f offA(0.0f), offB(0.0f);
+        const bool movedA = offsets.probeValue(a, offA), movedB = offsets.probeValue(b, offB);
+        if (movedA && movedB) return std::nullopt;
+        auto sideOf = [&](const Coord& c, bool moved) { return moved != isInside(restAt(c), mIso, mSide); };
+        const bool insideA = sideOf(a, movedA), insideB = sideOf(b, movedB);
+        if (e.diagonal()) {
+            if (insideA || insideB) return std::nullopt;
+            for (int w = 0; w < 2; ++w)
+                if (!sideOf(e.corner(w), offsets.isValueOn(e.corner(w)))) return std::nullopt;
+        }
+        const Vec3d pa = world(a) + Vec3d(offA.x(), offA.y(), offA.z()), pb = world(b) + Vec3d(offB.x(), offB.y(), offB.z());
+        int n = 0;
+        const std::vector<Run> runs = runsAlong(pa, pb, insideA, insideB, n, examined, evaluated);
+        if (runs.size() <= (insideA == insideB ? 1u : 2u)) return std::nullopt;
+        // An end that has not moved goes into the run next to its own, when that run is inside the
+        // edge (a part the edge hides), at the sample nearest the run's middle that its Ω holds —
+        // if that leaves fewer hidden runs on its six edges than before, and it is not the only
+        // node of a part itself.
+        for (const bool fromA : {true, false}) {
+            if (fromA ? movedA : movedB) continue;
+            const Run& run = runs[fromA ? 1 : runs.size() - 2];
+            if (run.first == 0 || run.last == n) continue;
+            const Coord c = fromA ? a : b;
+            const bool inside = fromA ? insideA : insideB;
+            const double middle = 0.5 * (run.first + run.last);
+            std::vector<int> order;
+            for (int i = run.first; i <= run.last; ++i) order.push_back(i);
+            std::stable_sort(order.begin(), order.end(),
+                             [&](int x, int y) { return std::fabs(x - middle) < std::fabs(y - middle); });
+            for (int i : order) {
+                const std::optional<Vec3f> placed = omegaOffset(pa + (pb - pa) * (double(i) / n) - world(c));
+                if (!placed) continue;
+                const Vec3f off = *placed;
+                ++evaluated;
+                if (!isOtherSide(inside, mField.value(world(c) + Vec3d(off)), mIso, mSide)) continue;
+                // A diagonal's own runs count too (the axis edges are among the six).
+                const std::size_t own = e.diagonal() ? runs.size() - 1 : 0;
+                const Vec3d to = world(c) + Vec3d(off), far = fromA ? pb : pa;
+                const std::size_t ownAfter = e.diagonal() ? hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
+                if (ownAfter > own || !improves(c, inside, to, own - ownAfter, offsets, examined, evaluated)) continue;
+                return Move{c, off, e};
+            }
+        }
+        return std::nullopt;
+    }
+
+private:
+    struct Run {
+        bool inside;
+        int first, last;
+    };
+
+    // Runs of samples on one side from a to b, at n steps shorter than h/k: a part at least h/k
+    // wide along the edge holds a sample. A value at iso stays in the run before it. Ends on one
+    // side whose bounds rule out the iso value give one run without sampling.
+    std::vector<Run> runsAlong(const Vec3d& pa, const Vec3d& pb, bool insideA, bool insideB, int& n, std::uint64_t& examined,
+                               std::uint64_t& evaluated) const {
+        n = int(std::floor(length(pb - pa) * mSteps / mFrame.h)) + 1;
+        std::vector<Run> runs{{insideA, 0, 0}};
+        if (insideA == insideB) {
+            const Vec3d lo(std::min(pa.x, pb.x), std::min(pa.y, pb.y), std::min(pa.z, pb.z));
+            const Vec3d hi(std::max(pa.x, pb.x), std::max(pa.y, pb.y), std::max(pa.z, pb.z));
+            if (!straddles(mField.bounds(Box3{lo, hi}), mIso)) {
+                runs.back().last = n;
+                return runs;
+            }
+        }
+        ++examined;
+        for (int i = 1; i < n; ++i) {
+            ++evaluated;
+            const double v = mField.value(pa + (pb - pa) * (double(i) / n));
+            if (isOtherSide(runs.back().inside, v, mIso, mSide)) runs.push_back({!runs.back().inside, i, i});
+            else runs.back().last = i;
+        }
+        if (runs.back().inside != insideB) runs.push_back({insideB, n, n});
+        else runs.back().last = n;
+        return runs;
+    }
+
+    // Runs beyond what the ends' sides explain.
+    std::size_t hiddenRuns(const Vec3d& pa, const Vec3d& pb, bool insideA, bool insideB, std::uint64_t& examined,
+                           std::uint64_t& evaluated) const {
+        int n = 0;
+        return runsAlong(pa, pb, insideA, insideB, n, examined, evaluated).size() - (insideA == insideB ? 1 : 2);
+    }
+
+    // Does moving node c (on side `inside`, not moved) to `to` leave its six edges, with the
+    // diagonal that asks (`gained` runs fewer there), hiding fewer runs in all and no edge more,
+    // and is c not alone on its side among its neighbours (then it is a thin part itself)?
+    bool improves(const Coord& c, bool inside, const Vec3d& to, std::size_t gained, OffsetAccessor& offsets, std::uint64_t& examined,
+                  std::uint64_t& evaluated) const {
+        double around[27];
+        mField.sampleNodes(mFrame, {c.x() - 1, c.y() - 1, c.z() - 1}, {3, 3, 3}, nullptr, around);
+        std::size_t before = 0, after = 0;
+        bool alone = true;
+        for (int k = 0; k < 6; ++k) {
+            Vec3i d;
+            d[std::size_t(k / 2)] = k % 2 ? 1 : -1;
+            const Coord nb = c.offsetBy(d.x, d.y, d.z);
+            if (!validNode(nb)) continue;
+            openvdb::Vec3f off(0.0f);
+            const bool moved = offsets.probeValue(nb, off);
+            const bool nbInside = moved != isInside(around[(d.x + 1) + 3 * (d.y + 1) + 9 * (d.z + 1)], mIso, mSide);
+            if (nbInside == inside) alone = false;
+            const Vec3d p = world(nb) + Vec3d(off.x(), off.y(), off.z());
+            const std::size_t was = hiddenRuns(world(c), p, inside, nbInside, examined, evaluated);
+            const std::size_t now = hiddenRuns(to, p, !inside, nbInside, examined, evaluated);
+            if (now > was) return false; // no edge may lose what it showed
+            before += was;
+            after += now;
+        }
+        return !alone && after < before + gained;
+    }
+
+    Vec3d world(const Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
+    // The float offset that puts a node at `rel` from its place, if that lies in its Ω. A point on
+    // the border between two Ω (an edge's middle) is rounded to either side, so it is taken a
+    // hair inside; so is any float that would round out.
+    std::optional<Vec3f> omegaOffset(Vec3d rel) const {
+        const double half = mFrame.h / 2, tol = 1e-6 * mFrame.h, inner = half * (1 - 1e-5);
+        for (int i = 0; i < 3; ++i) {
+            double& r = rel[std::size_t(i)];
+            if (r < -half - tol || r >= half + tol) return std::nullopt;
+            r = std::clamp(r, -inner, inner);
+        }
+        return Vec3f(rel);
+    }
+
+    const Field& mField;
+    const LatticeFrame& mFrame;
+    double mIso;
+    Inside mSide;
+    int mSteps;
+    Coord mNodeLo, mNodeHi;
+};
+
+// Every edge of the active cells, examined leaf by leaf with the leaf's node values.
+std::vector<Move> examineActiveCells(const EdgeExaminer& examiner, const Field& field, const Lattice& lattice,
+                                     const LatticeDeformation& deformation, const CancelToken* cancel, HiddenEdgeStats& stats) {
+    openvdb::tree::LeafManager<const openvdb::MaskTree> leaves(*lattice.cells);
+    std::vector<std::vector<Move>> perLeaf(leaves.leafCount());
+    std::vector<std::uint64_t> examined(leaves.leafCount(), 0), evaluated(leaves.leafCount(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount(), 4), [&](const tbb::blocked_range<std::size_t>& r) {
+        OffsetAccessor offsets(*deformation.offsets);
+        std::array<double, kLeafNodeCount> vals;
+        std::array<std::uint8_t, kLeafNodeCount> needed;
+        std::vector<std::uint8_t> seen(std::size_t(kLeafNodeCount) * kSegmentKinds);
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            if (cancel) cancel->check();
+            const auto& leaf = leaves.leaf(li);
+            const Coord o = leaf.origin();
+            sampleLeafNodes(field, lattice.frame, leaf, needed, vals);
+            std::fill(seen.begin(), seen.end(), 0);
+            auto restAt = [&](const Coord& c) {
+                const Coord l = c - o;
+                return vals[std::size_t(leafNodeIndex(l.x(), l.y(), l.z()))];
+            };
+            for (auto it = leaf.cbeginValueOn(); it; ++it) {
+                const Coord cell = it.getCoord();
+                // The cell's 12 edges and 12 face diagonals: corner pairs one or two steps apart.
+                for (int c1 = 0; c1 < 8; ++c1)
+                    for (int c2 = c1 + 1; c2 < 8; ++c2) {
+                        if (__builtin_popcount(unsigned(c1 ^ c2)) > 2) continue;
+                        auto corner = [&](int c) { return cell.offsetBy(c & 1, (c >> 1) & 1, (c >> 2) & 1); };
+                        const Edge e = segment(corner(c1), corner(c2));
+                        const Coord l = e.node - o;
+                        std::uint8_t& mark = seen[std::size_t(leafNodeIndex(l.x(), l.y(), l.z())) * kSegmentKinds + std::size_t(e.kind)];
+                        if (mark) continue;
+                        mark = 1;
+                        if (auto m = examiner.examine(e, restAt, offsets, examined[li], evaluated[li])) perLeaf[li].push_back(*m);
+                    }
+            }
+        }
+    });
+    std::vector<Move> all;
+    for (std::size_t li = 0; li < perLeaf.size(); ++li) {
+        all.insert(all.end(), perLeaf[li].begin(), perLeaf[li].end());
+        stats.edgesExamined += examined[li];
+        stats.samples += evaluated[li];
+    }
+    return all;
+}
+
+// The six edges at each of `nodes`, examined again after nodes moved, and `edges`.
+std::vector<Move> examineAround(const EdgeExaminer& examiner, const std::vector<Coord>& nodes, std::vector<Edge> edges,
+                                const LatticeDeformation& deformation, HiddenEdgeStats& stats) {
+    // Every edge at a node, and both diagonals of every face it is a corner of.
+    for (const Coord& n : nodes)
+        for (int u = 0; u < 3; ++u)
+            for (int su = -1; su <= 1; su += 2) {
+                const Coord nu = n.offsetBy(u == 0 ? su : 0, u == 1 ? su : 0, u == 2 ? su : 0);
+                edges.push_back(segment(n, nu));
+                for (int v = u + 1; v < 3; ++v)
+                    for (int sv = -1; sv <= 1; sv += 2) {
+                        const Coord nv = n.offsetBy(v == 0 ? sv : 0, v == 1 ? sv : 0, v == 2 ? sv : 0);
+                        edges.push_back(segment(n, nu.offsetBy(v == 0 ? sv : 0, v == 1 ? sv : 0, v == 2 ? sv : 0)));
+                        edges.push_back(segment(nu, nv));
+                    }
+            }
+    edges.erase(std::remove_if(edges.begin(), edges.end(),
+                               [&](const Edge& e) {
+                                   return !examiner.validNode(e.node) || !examiner.validNode(e.other()) ||
+                                          (e.diagonal() && (!examiner.validNode(e.corner(0)) || !examiner.validNode(e.corner(1))));
+                               }),
+                edges.end());
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    std::vector<std::optional<Move>> moves(edges.size());
+    std::vector<std::uint64_t> examined(edges.size(), 0), evaluated(edges.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, edges.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+        OffsetAccessor offsets(*deformation.offsets);
+        for (std::size_t i = r.begin(); i < r.end(); ++i)
+            moves[i] = examiner.examine(edges[i], [&](const Coord& c) { return examiner.rest(c); }, offsets, examined[i],
+                                        evaluated[i]);
+    });
+    std::vector<Move> all;
+    for (std::size_t i = 0; i < edges.size(); ++i) {
+        if (moves[i]) all.push_back(*moves[i]);
+        stats.edgesExamined += examined[i];
+        stats.samples += evaluated[i];
+    }
+    return all;
+}
+
+} // namespace
+
+void splitHiddenEdges(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,
+                      LatticeDeformation& deformation, HiddenEdgeStats* statsOut) {
+    HiddenEdgeStats stats;
+    if (field.cellBoundsAreCornerRange(lattice.frame)) {
+        if (statsOut) *statsOut = stats;
+        return;
+    }
+    const EdgeExaminer examiner(field, lattice, options.iso, options.steps);
+    std::vector<Move> proposals = examineActiveCells(examiner, field, lattice, deformation, options.cancel, stats);
+    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
+    for (int round = 0; round < kMaxRounds && !proposals.empty(); ++round) {
+        if (options.cancel) options.cancel->check();
+        // One move per node, and none next to a node moved this round.
+        std::sort(proposals.begin(), proposals.end());
+        std::vector<Coord> moved;
+        std::vector<Edge> deferred;
+        for (std::size_t i = 0; i < proposals.size(); ++i) {
+            const Move& m = proposals[i];
+            if (acc.isValueOn(m.node)) continue;
+            bool nextToMoved = false; // its counts assumed its neighbours stay
+            for (int k = 0; k < 6 && !nextToMoved; ++k) {
+                const int step = k % 2 ? 1 : -1;
+                nextToMoved = std::binary_search(moved.begin(), moved.end(),
+                                                 m.node.offsetBy(k / 2 == 0 ? step : 0, k / 2 == 1 ? step : 0, k / 2 == 2 ? step : 0));
+            }
+            if (nextToMoved) {
+                deferred.push_back(m.edge);
+                continue;
+            }
+            acc.setValue(m.node, openvdb::Vec3f(m.offset.x, m.offset.y, m.offset.z));
+            moved.insert(std::upper_bound(moved.begin(), moved.end(), m.node), m.node);
+        }
+        stats.edgesSplit += moved.size();
+        std::vector<Vec3i> from, bridgedNodes;
+        for (const Coord& c : moved) from.emplace_back(c.x(), c.y(), c.z());
+        stats.bridged += bridgeThinParts(field, lattice, options, deformation, from, &stats.samples, &bridgedNodes);
+        for (const Vec3i& v : bridgedNodes) moved.emplace_back(v.x, v.y, v.z);
+        proposals = examineAround(examiner, moved, std::move(deferred), deformation, stats);
+    }
+    if (statsOut) *statsOut = stats;
+}
+
+} // namespace vdbsurf
