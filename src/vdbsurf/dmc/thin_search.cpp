@@ -102,7 +102,8 @@ void classifyCells(const Field& field, const Lattice& lattice, double iso, const
 class OmegaSearch {
 public:
     OmegaSearch(const Field& field, const Lattice& lattice, double iso, int steps)
-        : mField(field), mLattice(lattice), mIso(iso), mSide(field.inside()), mH(lattice.frame.h) {
+        : mField(field), mLattice(lattice), mIso(iso), mSide(field.inside()), mH(lattice.frame.h),
+          mSubdivide(field.boundsCheaperThanSamples()) {
         const int m = thinSearchSamplesPerAxis(steps);
         const double a = mH / m;
         for (int i = 0; i < m; ++i) {
@@ -114,6 +115,14 @@ public:
 
     // Strictly on the other side of a node whose side is `inside`: an iso value counts for neither.
     bool otherSide(bool inside, double v) const { return isOtherSide(inside, v, mIso, mSide); }
+
+    // Can a value within b lie on the other side from a node on side `inside`? (With the
+    // tolerance of straddles(), for the rounding of point evaluations.)
+    bool mayBeOtherSide(bool inside, const Interval& b) const {
+        const double tol = 1e-9 * std::max({1.0, std::fabs(b.lo), std::fabs(b.hi), std::fabs(mIso)});
+        const bool wantAbove = inside == (mSide == Inside::Below); // other side lies above iso
+        return wantAbove ? b.hi + tol >= mIso : b.lo - tol <= mIso;
+    }
 
     // The node's new offset, if its Ω holds samples on the other side. `around` holds the values
     // of the 3x3x3 nodes centred on it (x fastest).
@@ -140,11 +149,21 @@ public:
             }
             const Vec3d lo = centre + Vec3d(dx ? 0 : -mH / 2, dy ? 0 : -mH / 2, dz ? 0 : -mH / 2);
             if (!straddles(mField.bounds(Box3{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)}), mIso)) continue;
+            // The octant's eighths that may hold a value on the other side: samples elsewhere
+            // cannot, so skipping them changes nothing found (and saves most evaluations of costly
+            // formulas, whose bounds over a whole octant are loose).
+            const Vec3d mid = lo + Vec3d(mH / 4, mH / 4, mH / 4);
+            bool eighth[8] = {true, true, true, true, true, true, true, true};
+            for (int k = 0; k < 8 && mSubdivide; ++k) {
+                const Vec3d sub = lo + Vec3d(k & 1 ? mH / 4 : 0, k & 2 ? mH / 4 : 0, k & 4 ? mH / 4 : 0);
+                eighth[k] = mayBeOtherSide(nodeInside, mField.bounds(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}));
+            }
             for (int pattern = 0; pattern < 2; ++pattern)
                 for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
                     for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
                         for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) {
                             const Vec3d p = centre + Vec3d(ox, oy, oz);
+                            if (!eighth[(p.x >= mid.x) | (p.y >= mid.y) << 1 | (p.z >= mid.z) << 2]) continue;
                             ++evaluated;
                             if (otherSide(nodeInside, mField.value(p))) found.push_back(p);
                         }
@@ -179,6 +198,7 @@ private:
     double mIso;
     Inside mSide;
     double mH;
+    bool mSubdivide; // rule out eighths of an octant by their bounds before sampling them
     std::array<std::array<std::vector<double>, 2>, 2> mAxis; // [pattern: cubic, centred][half of Ω: below, above]
 };
 

@@ -13,6 +13,7 @@ public:
     double value(const Vec3d& p) const override { return evalValue(mProgram, p); }
     Vec3d gradient(const Vec3d& p) const override;
     Interval bounds(const Box3& box) const override { return evalBounds(mProgram, box); }
+    bool boundsCheaperThanSamples() const override { return true; }
     Inside inside() const override { return Inside::Below; }
     Box3 domain() const override { return mBox; }
     std::string describe() const override { return "--expr \"" + mProgram.source + "\""; }

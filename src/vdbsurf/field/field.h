@@ -70,6 +70,10 @@ public:
     // (a grid meshed at its own voxel size), so the lattice need not ask bounds() per cell.
     virtual bool cellBoundsAreCornerRange(const LatticeFrame& frame) const { return false; }
 
+    // True when a bounds() call over a small box costs less than a few value() calls (a long
+    // formula), so searches may first rule out sub-boxes by their bounds. Only speed depends on it.
+    virtual bool boundsCheaperThanSamples() const { return false; }
+
     // True when, on this frame, the field is linear along every lattice edge, so the crossing
     // on an undeformed edge is plain linear interpolation of the two node values.
     virtual bool edgesAreLinear(const LatticeFrame& frame) const { return false; }
