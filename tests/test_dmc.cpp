@@ -420,9 +420,15 @@ TEST_CASE("DMC with thin search and sharp features off is plain marching cubes, 
 TEST_CASE("a spherical shell 0.3 H thick keeps its inner and outer surfaces apart") {
     // Lattice edges and face diagonals from the cavity to the outside cross the sheet with both
     // ends outside; without the hidden-edge phase marching cubes joins the two sides there.
-    const Mesh dmc = meshFormula("abs(sqrt((x-0.01)^2+(y+0.02)^2+(z-0.03)^2)-0.7)-0.015", kBox, kH);
+    const ExpressionField f("abs(sqrt((x-0.01)^2+(y+0.02)^2+(z-0.03)^2)-0.7)-0.015", kBox);
+    MeshRequest req;
+    req.voxelSize = kH;
+    MeshReport report;
+    const Mesh dmc = meshField(f, req, report);
     requireClosed(dmc);
     CHECK(countComponents(dmc) == 2);
+    CHECK(report.thinEdgesSplit > 0);
+    CHECK(report.thinEdgesSplit <= report.thinNodesMoved);
 }
 
 // Known shortfall, kept visible: near the rim, where the crack opens to the outside, one node per

@@ -164,6 +164,7 @@ void runMesh(const MeshOptions& o) {
                            {"thin_candidates", rep.thinCandidates},
                            {"thin_samples", rep.thinSamples},
                            {"nodes_moved_thin", rep.thinNodesMoved},
+                           {"nodes_moved_hidden_edges", rep.thinEdgesSplit},
                            {"sharp_edge_cells", rep.sharpEdgeCells},
                            {"sharp_corner_cells", rep.sharpCornerCells},
                            {"sharp_rejected", rep.sharpRejected},

@@ -79,6 +79,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.thinCandidates = ts.candidates;
         report.thinSamples = ts.samples;
         report.thinNodesMoved = ts.nodesMoved;
+        report.thinEdgesSplit = ts.edgesSplit;
         report.secondsThin = ts.seconds;
     }
 
