@@ -106,8 +106,8 @@ public:
         if (runs.size() <= (insideA == insideB ? 1u : 2u)) return std::nullopt;
         // An end that has not moved goes into the run next to its own, when that run is inside the
         // edge (a part the edge hides), at the sample nearest the run's middle that its Ω holds —
-        // if that leaves fewer hidden runs on its six edges than before, and it is not the only
-        // node of a part itself.
+        // if that leaves fewer hidden runs on its six edges than before and none more on any one,
+        // and it is not the only node of a part itself.
         for (const bool fromA : {true, false}) {
             if (fromA ? movedA : movedB) continue;
             const Run& run = runs[fromA ? 1 : runs.size() - 2];
