@@ -44,6 +44,11 @@ struct Edge {
     }
 };
 
+// The node one step from c along axis (0-2), towards sign (-1 or 1).
+Coord neighbour(const Coord& c, int axis, int sign) {
+    return c.offsetBy(axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0);
+}
+
 // The segment between two nodes one edge or one face diagonal apart.
 Edge segment(const Coord& p, const Coord& q) {
     const Coord d = q - p;
@@ -186,13 +191,11 @@ private:
         std::size_t before = 0, after = 0;
         bool alone = true;
         for (int k = 0; k < 6; ++k) {
-            Vec3i d;
-            d[std::size_t(k / 2)] = k % 2 ? 1 : -1;
-            const Coord nb = c.offsetBy(d.x, d.y, d.z);
+            const Coord nb = neighbour(c, k / 2, k % 2 ? 1 : -1), d = nb - c;
             if (!validNode(nb)) continue;
             openvdb::Vec3f off(0.0f);
             const bool moved = offsets.probeValue(nb, off);
-            const bool nbInside = moved != isInside(around[(d.x + 1) + 3 * (d.y + 1) + 9 * (d.z + 1)], mIso, mSide);
+            const bool nbInside = moved != isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide);
             if (nbInside == inside) alone = false;
             const Vec3d p = world(nb) + Vec3d(off.x(), off.y(), off.z());
             const std::size_t was = hiddenRuns(world(c), p, inside, nbInside, examined, evaluated);
@@ -273,20 +276,19 @@ std::vector<Move> examineActiveCells(const EdgeExaminer& examiner, const Field& 
     return all;
 }
 
-// The six edges at each of `nodes`, examined again after nodes moved, and `edges`.
+// Examined again after nodes moved: `edges` (deferred ones), and around each of `nodes` every
+// edge at it and both diagonals of every face it is a corner of.
 std::vector<Move> examineAround(const EdgeExaminer& examiner, const std::vector<Coord>& nodes, std::vector<Edge> edges,
                                 const LatticeDeformation& deformation, HiddenEdgeStats& stats) {
-    // Every edge at a node, and both diagonals of every face it is a corner of.
     for (const Coord& n : nodes)
         for (int u = 0; u < 3; ++u)
             for (int su = -1; su <= 1; su += 2) {
-                const Coord nu = n.offsetBy(u == 0 ? su : 0, u == 1 ? su : 0, u == 2 ? su : 0);
+                const Coord nu = neighbour(n, u, su);
                 edges.push_back(segment(n, nu));
                 for (int v = u + 1; v < 3; ++v)
                     for (int sv = -1; sv <= 1; sv += 2) {
-                        const Coord nv = n.offsetBy(v == 0 ? sv : 0, v == 1 ? sv : 0, v == 2 ? sv : 0);
-                        edges.push_back(segment(n, nu.offsetBy(v == 0 ? sv : 0, v == 1 ? sv : 0, v == 2 ? sv : 0)));
-                        edges.push_back(segment(nu, nv));
+                        edges.push_back(segment(n, neighbour(nu, v, sv)));
+                        edges.push_back(segment(nu, neighbour(n, v, sv)));
                     }
             }
     edges.erase(std::remove_if(edges.begin(), edges.end(),
@@ -336,17 +338,14 @@ void splitHiddenEdges(const Field& field, const Lattice& lattice, const ThinSear
             const Move& m = proposals[i];
             if (acc.isValueOn(m.node)) continue;
             bool nextToMoved = false; // its counts assumed its neighbours stay
-            for (int k = 0; k < 6 && !nextToMoved; ++k) {
-                const int step = k % 2 ? 1 : -1;
-                nextToMoved = std::binary_search(moved.begin(), moved.end(),
-                                                 m.node.offsetBy(k / 2 == 0 ? step : 0, k / 2 == 1 ? step : 0, k / 2 == 2 ? step : 0));
-            }
+            for (int k = 0; k < 6 && !nextToMoved; ++k)
+                nextToMoved = std::binary_search(moved.begin(), moved.end(), neighbour(m.node, k / 2, k % 2 ? 1 : -1));
             if (nextToMoved) {
                 deferred.push_back(m.edge);
                 continue;
             }
             acc.setValue(m.node, openvdb::Vec3f(m.offset.x, m.offset.y, m.offset.z));
-            moved.insert(std::upper_bound(moved.begin(), moved.end(), m.node), m.node);
+            moved.push_back(m.node); // proposals go in node order, so `moved` stays sorted
         }
         stats.edgesSplit += moved.size();
         std::vector<Vec3i> from, bridgedNodes;

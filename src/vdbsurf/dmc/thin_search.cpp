@@ -116,13 +116,6 @@ public:
     // Strictly on the other side of a node whose side is `inside`: an iso value counts for neither.
     bool otherSide(bool inside, double v) const { return isOtherSide(inside, v, mIso, mSide); }
 
-    // Can a value within b lie on the other side from a node on side `inside`? (With the
-    // tolerance of straddles(), for the rounding of point evaluations.)
-    bool mayBeOtherSide(bool inside, const Interval& b) const {
-        const double tol = 1e-9 * std::max({1.0, std::fabs(b.lo), std::fabs(b.hi), std::fabs(mIso)});
-        const bool wantAbove = inside == (mSide == Inside::Below); // other side lies above iso
-        return wantAbove ? b.hi + tol >= mIso : b.lo - tol <= mIso;
-    }
 
     // The node's new offset, if its Ω holds samples on the other side. `around` holds the values
     // of the 3x3x3 nodes centred on it (x fastest).
@@ -156,7 +149,7 @@ public:
             bool eighth[8] = {true, true, true, true, true, true, true, true};
             for (int k = 0; k < 8 && mSubdivide; ++k) {
                 const Vec3d sub = lo + Vec3d(k & 1 ? mH / 4 : 0, k & 2 ? mH / 4 : 0, k & 4 ? mH / 4 : 0);
-                eighth[k] = mayBeOtherSide(nodeInside, mField.bounds(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}));
+                eighth[k] = mayBeOtherSide(nodeInside, mField.bounds(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}), mIso, mSide);
             }
             for (int pattern = 0; pattern < 2; ++pattern)
                 for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])

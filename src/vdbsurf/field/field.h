@@ -22,9 +22,14 @@ struct Interval {
     bool contains(double v) const { return v >= lo && v <= hi; }
 };
 
-// Does [lo, hi], widened by a tolerance for the rounding of point evaluations, contain iso?
+// How far bounds are widened for the rounding of point evaluations.
+inline double boundsTolerance(const Interval& b, double iso) {
+    return 1e-9 * std::max({1.0, std::fabs(b.lo), std::fabs(b.hi), std::fabs(iso)});
+}
+
+// Does [lo, hi], widened by boundsTolerance, contain iso?
 inline bool straddles(const Interval& b, double iso) {
-    const double tol = 1e-9 * std::max({1.0, std::fabs(b.lo), std::fabs(b.hi), std::fabs(iso)});
+    const double tol = boundsTolerance(b, iso);
     return b.lo - tol <= iso && iso <= b.hi + tol;
 }
 
@@ -37,6 +42,14 @@ inline bool isInside(double v, double iso, Inside side) { return side == Inside:
 // Strictly on the other side from a point whose side is `inside`: an iso value counts for neither.
 inline bool isOtherSide(bool inside, double v, double iso, Inside side) {
     return inside ? (side == Inside::Below ? v > iso : v < iso) : isInside(v, iso, side);
+}
+
+// Can a value within b (widened by boundsTolerance) lie strictly on the other side from a point
+// whose side is `inside`?
+inline bool mayBeOtherSide(bool inside, const Interval& b, double iso, Inside side) {
+    const double tol = boundsTolerance(b, iso);
+    const bool otherAbove = inside == (side == Inside::Below);
+    return otherAbove ? b.hi + tol >= iso : b.lo - tol <= iso;
 }
 
 class Field {
