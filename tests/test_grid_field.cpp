@@ -75,6 +75,35 @@ TEST_CASE("grid bounds contain every sampled value, for aligned and rotated tran
     }
 }
 
+TEST_CASE("valueAndGradient returns value() and gradient() bit for bit, aligned and rotated") {
+    for (bool rotate : {false, true}) {
+        auto g = noiseGrid(12, 0.25, 3);
+        if (rotate) {
+            auto xf = openvdb::math::Transform::createLinearTransform(0.25);
+            xf->postRotate(0.4, openvdb::math::Z_AXIS);
+            xf->postRotate(0.3, openvdb::math::X_AXIS);
+            g->setTransform(xf);
+        }
+        GridField f(g, "noise");
+        std::mt19937 rng(7);
+        std::uniform_real_distribution<double> u(-1.6, 1.6);
+        // Random points, voxel centres and points half-way between them (where ip +- 0.5 lands on
+        // voxel boundaries), across the data's edge.
+        std::vector<Vec3d> points;
+        for (int i = 0; i < 400; ++i) points.push_back({u(rng), u(rng), u(rng)});
+        for (int i = -8; i <= 8; ++i) points.push_back({0.125 * i, 0.25 * i, -0.125 * i}), points.push_back({0.25 * i, 0, 0.125});
+        std::size_t differ = 0;
+        for (const Vec3d& p : points) {
+            Vec3d gradient;
+            const double v = f.valueAndGradient(p, gradient);
+            const Vec3d expected = f.gradient(p);
+            differ += v != f.value(p) || gradient.x != expected.x || gradient.y != expected.y || gradient.z != expected.z;
+        }
+        INFO("rotated " << rotate);
+        CHECK(differ == 0);
+    }
+}
+
 TEST_CASE("grid bounds are tight on a level set: boxes away from the surface do not straddle") {
     auto g = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.05);
     GridField f(g, "sphere");

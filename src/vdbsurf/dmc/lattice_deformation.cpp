@@ -6,16 +6,25 @@
 
 namespace vdbsurf {
 
+namespace {
+void activateAround(Lattice& lattice, openvdb::MaskTree& around, const openvdb::Coord& n) {
+    for (int d = 0; d < 8; ++d) {
+        const openvdb::Coord c = n.offsetBy(-(d & 1), -((d >> 1) & 1), -((d >> 2) & 1));
+        if (lattice.cellRange.isInside(c)) around.setValueOn(c);
+    }
+}
+} // namespace
+
 void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation) {
     openvdb::MaskTree around(false);
-    auto add = [&](const openvdb::Coord& n) {
-        for (int d = 0; d < 8; ++d) {
-            const openvdb::Coord c = n.offsetBy(-(d & 1), -((d >> 1) & 1), -((d >> 2) & 1));
-            if (lattice.cellRange.isInside(c)) around.setValueOn(c);
-        }
-    };
-    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) add(it.getCoord());
-    for (auto it = deformation.onSurface->cbeginValueOn(); it; ++it) add(it.getCoord());
+    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) activateAround(lattice, around, it.getCoord());
+    for (auto it = deformation.onSurface->cbeginValueOn(); it; ++it) activateAround(lattice, around, it.getCoord());
+    lattice.cells->topologyUnion(around);
+}
+
+void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
+    openvdb::MaskTree around(false);
+    for (const Vec3i& n : nodes) activateAround(lattice, around, openvdb::Coord(n.x, n.y, n.z));
     lattice.cells->topologyUnion(around);
 }
 

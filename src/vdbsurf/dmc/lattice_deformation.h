@@ -12,6 +12,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -29,6 +30,11 @@ struct LatticeDeformation {
 // Activates the cells around every moved node (clipped to the lattice's range): a node that
 // moved can change the sides of the cells it is a corner of.
 void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation);
+
+// Activates the cells around the given nodes only (clipped likewise): after the sharp pass,
+// the nodes that changed side. A node placed on a feature keeps its side, so the cells around
+// it keep their cases, and those with no surface need not become active.
+void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes);
 
 // Writes the deformed lattice as a .vdb readable by any OpenVDB tool: a Vec3f grid "offsets"
 // (world-unit node offsets; every node of an active cell is active, unmoved nodes hold zero), a

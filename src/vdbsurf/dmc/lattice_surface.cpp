@@ -6,7 +6,7 @@
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/leaf_nodes.h"
 #include "vdbsurf/dmc/node_gradients.h"
-#include "vdbsurf/mesh/vertex_fans.h"
+#include "vdbsurf/dmc/node_weld.h"
 
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/parallel_for.h>
@@ -90,60 +90,6 @@ bool anyActiveNode(Accessor& acc, const Coord& origin) {
     return false;
 }
 
-// Two polygons through the same vertices in opposite orders (two cells whose surfaces collapsed
-// onto the same welded nodes) enclose nothing: together they are a closed zero-volume pillow.
-// Marks both (drop[f] = 1); on an edge-manifold surface (call it only on one) their edges belong
-// to them alone, so dropping them leaves nothing open. Only polygons at a welded vertex
-// (`welded`) can form one. Returns the number marked.
-std::uint64_t markReversedPairs(const std::vector<std::uint32_t>& offsets, const std::vector<std::uint32_t>& indices,
-                                const std::vector<std::uint8_t>& welded, std::vector<std::uint8_t>& drop) {
-    drop.assign(offsets.size() - 1, 0);
-    // Polygons rotated to their lowest vertex, in one flat array, sorted by (loop, polygon): a
-    // reversed twin is found by search (no vector a polygon: there are tens of thousands).
-    std::vector<std::uint32_t> flat;
-    struct Keyed {
-        std::uint32_t start, size, polygon;
-    };
-    std::vector<Keyed> keyed;
-    for (std::uint32_t f = 0; f + 1 < offsets.size(); ++f) {
-        const auto first = indices.begin() + offsets[f], last = indices.begin() + offsets[f + 1];
-        if (std::none_of(first, last, [&](std::uint32_t v) { return welded[v] != 0; })) continue;
-        const auto lowest = std::min_element(first, last);
-        keyed.push_back({std::uint32_t(flat.size()), std::uint32_t(last - first), f});
-        flat.insert(flat.end(), lowest, last);
-        flat.insert(flat.end(), first, lowest);
-    }
-    auto loopOf = [&](const Keyed& k) { return std::make_pair(flat.begin() + k.start, flat.begin() + k.start + k.size); };
-    auto loopLess = [](auto x0, auto x1, auto y0, auto y1) { return std::lexicographical_compare(x0, x1, y0, y1); };
-    std::sort(keyed.begin(), keyed.end(), [&](const Keyed& x, const Keyed& y) {
-        const auto [x0, x1] = loopOf(x);
-        const auto [y0, y1] = loopOf(y);
-        if (loopLess(x0, x1, y0, y1)) return true;
-        if (loopLess(y0, y1, x0, x1)) return false;
-        return x.polygon < y.polygon;
-    });
-    std::uint64_t marked = 0;
-    std::vector<std::uint32_t> reversed;
-    for (const Keyed& k : keyed) {
-        if (drop[k.polygon]) continue;
-        const auto [k0, k1] = loopOf(k);
-        reversed.assign(std::make_reverse_iterator(k1), std::make_reverse_iterator(k0));
-        std::rotate(reversed.begin(), std::min_element(reversed.begin(), reversed.end()), reversed.end());
-        auto it = std::lower_bound(keyed.begin(), keyed.end(), reversed, [&](const Keyed& x, const std::vector<std::uint32_t>& r) {
-            const auto [x0, x1] = loopOf(x);
-            return loopLess(x0, x1, r.begin(), r.end());
-        });
-        for (; it != keyed.end() && std::equal(flat.begin() + it->start, flat.begin() + it->start + it->size, reversed.begin(), reversed.end());
-             ++it)
-            if (it->polygon != k.polygon && !drop[it->polygon]) {
-                drop[k.polygon] = drop[it->polygon] = 1;
-                marked += 2;
-                break;
-            }
-    }
-    return marked;
-}
-
 } // namespace
 
 struct LatticeSurface::Impl {
@@ -176,7 +122,6 @@ struct LatticeSurface::Impl {
     // All leaves, or only those listed (their work is recomputed from scratch).
     void firstPass(const std::vector<std::size_t>* only = nullptr);
     VertexRef vertexOf(const LeafWork& w, const Coord& cell, int e) const;
-    void weldNodeVertices(Mesh& mesh);
 };
 
 void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
@@ -369,158 +314,6 @@ VertexRef LatticeSurface::Impl::vertexOf(const LeafWork& w, const Coord& cell, i
     return {std::uint32_t(ni), std::uint32_t(ow.vertexPrefix[rank]) + std::uint32_t(__builtin_popcount(m & ((1u << oe) - 1u)))};
 }
 
-// Vertices on one iso node become one vertex (the lowest number, so the result does not depend
-// on threads); polygons lose repeated corners, those left with fewer than three are dropped,
-// and a polygon that passes a node twice is split there. Where the surface really crosses
-// itself at an iso node (a saddle: inside on opposite sides), welding would glue two sheets
-// along an edge; such nodes keep their vertices apart, as plain marching cubes would.
-// Unused vertices are removed.
-void LatticeSurface::Impl::weldNodeVertices(Mesh& mesh) {
-    std::vector<std::pair<std::uint32_t, Coord>> atNode; // (vertex, node), in leaf order
-    for (const LeafWork& w : work)
-        for (const auto& [local, node] : w.nodeVertices) atNode.emplace_back(w.vertexBase + local, node);
-    if (atNode.empty()) return;
-
-    std::unordered_map<Coord, std::uint32_t> representative;
-    for (const auto& [v, node] : atNode) representative.emplace(node, v);
-    // Only polygons through a vertex on a node can change: the attempts below redo just those.
-    std::vector<std::uint8_t> onNode(mesh.points.size(), 0);
-    for (const auto& [v, node] : atNode) onNode[v] = 1;
-    std::vector<std::uint32_t> candidates;
-    for (std::uint32_t f = 0; f + 1 < mesh.offsets.size(); ++f)
-        for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i)
-            if (onNode[mesh.indices[i]]) {
-                candidates.push_back(f);
-                break;
-            }
-    std::vector<std::uint32_t> remap(mesh.points.size());
-    for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
-    std::vector<std::uint8_t> isRep(mesh.points.size(), 0);
-    std::vector<std::uint32_t> repOf(atNode.size());
-    for (std::size_t k = 0; k < atNode.size(); ++k) repOf[k] = representative.at(atNode[k].second);
-    std::unordered_map<Coord, bool> keepApart;
-    for (int attempt = 0;; ++attempt) {
-        for (std::size_t k = 0; k < atNode.size(); ++k) remap[atNode[k].first] = atNode[k].first, isRep[repOf[k]] = 0;
-        std::unordered_map<std::uint32_t, Coord> nodeOfRep;
-        std::uint64_t welded = 0;
-        for (std::size_t k = 0; k < atNode.size(); ++k) {
-            const auto& [v, node] = atNode[k];
-            if (!keepApart.empty() && keepApart.count(node)) continue;
-            const std::uint32_t rep = repOf[k];
-            if (rep != v) {
-                remap[v] = rep;
-                ++welded;
-                isRep[rep] = 1;
-                nodeOfRep.emplace(rep, node);
-            }
-        }
-        if (welded == 0) return;
-
-        // The candidates' polygons after welding: loops [first[k], first[k + 1]) of (offsets, indices).
-        std::vector<std::uint32_t> offsets{0}, indices, first{0};
-        std::uint64_t collapsed = 0;
-        std::vector<std::uint32_t> poly, clean; // reused: most loops need no split, so no allocation
-        auto emitLoop = [&](auto&& self, const std::vector<std::uint32_t>& loop) -> void {
-            clean.clear();
-            for (std::uint32_t v : loop)
-                if (clean.empty() || clean.back() != v) clean.push_back(v);
-            while (clean.size() > 1 && clean.front() == clean.back()) clean.pop_back();
-            if (clean.size() < 3) {
-                ++collapsed;
-                return;
-            }
-            for (std::size_t i = 0; i < clean.size(); ++i)
-                for (std::size_t j = i + 1; j < clean.size(); ++j)
-                    if (clean[i] == clean[j]) {
-                        const std::vector<std::uint32_t> a(clean.begin() + std::ptrdiff_t(i), clean.begin() + std::ptrdiff_t(j));
-                        std::vector<std::uint32_t> b(clean.begin(), clean.begin() + std::ptrdiff_t(i));
-                        b.insert(b.end(), clean.begin() + std::ptrdiff_t(j), clean.end());
-                        self(self, a);
-                        self(self, b);
-                        return;
-                    }
-            indices.insert(indices.end(), clean.begin(), clean.end());
-            offsets.push_back(std::uint32_t(indices.size()));
-        };
-        for (const std::uint32_t f : candidates) {
-            poly.clear();
-            for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) poly.push_back(remap[mesh.indices[i]]);
-            emitLoop(emitLoop, poly);
-            first.push_back(std::uint32_t(offsets.size() - 1));
-        }
-
-        // Only edges at a welded vertex can have become shared by more than two polygons, and
-        // every polygon with such an edge is a candidate.
-        std::vector<std::pair<std::uint64_t, int>> edges; // (undirected key, direction)
-        for (std::size_t f = 0; f + 1 < offsets.size(); ++f)
-            for (std::uint32_t i = offsets[f]; i < offsets[f + 1]; ++i) {
-                const std::uint32_t a = indices[i], b = indices[i + 1 < offsets[f + 1] ? i + 1 : offsets[f]];
-                if (!isRep[a] && !isRep[b]) continue;
-                edges.emplace_back((std::uint64_t(std::min(a, b)) << 32) | std::max(a, b), a < b ? 1 : -1);
-            }
-        std::sort(edges.begin(), edges.end());
-        bool bad = false;
-        for (std::size_t i = 0; i < edges.size();) {
-            std::size_t j = i;
-            int sum = 0;
-            while (j < edges.size() && edges[j].first == edges[i].first) sum += edges[j++].second;
-            if (j - i > 2 || (j - i == 2 && sum != 0)) {
-                for (const std::uint32_t v : {std::uint32_t(edges[i].first >> 32), std::uint32_t(edges[i].first)})
-                    if (isRep[v]) keepApart.emplace(nodeOfRep.at(v), true);
-                bad = true;
-            }
-            i = j;
-        }
-        if (bad && attempt < 8) continue;
-        if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
-        // Edge-manifold now, so a reversed pair is a closed piece of its own.
-        std::vector<std::uint8_t> pillow;
-        collapsed += markReversedPairs(offsets, indices, isRep, pillow);
-        // The whole mesh in polygon order: candidates replaced by their loops.
-        std::vector<std::uint32_t> allOffsets{0}, allIndices;
-        allOffsets.reserve(mesh.offsets.size());
-        allIndices.reserve(mesh.indices.size());
-        std::size_t k = 0;
-        for (std::uint32_t f = 0; f + 1 < mesh.offsets.size(); ++f) {
-            if (k < candidates.size() && candidates[k] == f) {
-                for (std::uint32_t l = first[k]; l < first[k + 1]; ++l) {
-                    if (pillow[l]) continue;
-                    allIndices.insert(allIndices.end(), indices.begin() + offsets[l], indices.begin() + offsets[l + 1]);
-                    allOffsets.push_back(std::uint32_t(allIndices.size()));
-                }
-                ++k;
-                continue;
-            }
-            allIndices.insert(allIndices.end(), mesh.indices.begin() + mesh.offsets[f], mesh.indices.begin() + mesh.offsets[f + 1]);
-            allOffsets.push_back(std::uint32_t(allIndices.size()));
-        }
-
-        std::vector<std::uint32_t> newId(mesh.points.size(), UINT32_MAX);
-        for (std::uint32_t v : allIndices) newId[v] = 0;
-        std::uint32_t next = 0;
-        std::vector<Vec3f> points;
-        points.reserve(mesh.points.size() - welded);
-        for (std::size_t v = 0; v < newId.size(); ++v)
-            if (newId[v] == 0) {
-                newId[v] = next++;
-                points.push_back(mesh.points[v]);
-            }
-        for (std::uint32_t& v : allIndices) v = newId[v];
-        mesh.points = std::move(points);
-        mesh.offsets = std::move(allOffsets);
-        mesh.indices = std::move(allIndices);
-        stats.weldedVertices = welded;
-        stats.collapsedPolygons = collapsed;
-        // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
-        // feature node between two fans) gets one vertex per fan: the mesh stays vertex-manifold.
-        std::vector<std::uint32_t> welds;
-        for (std::size_t v = 0; v < isRep.size(); ++v)
-            if (isRep[v] && newId[v] != UINT32_MAX) welds.push_back(newId[v]);
-        stats.splitVertices = splitFansAt(mesh, std::move(welds));
-        return;
-    }
-}
-
 LatticeSurface::LatticeSurface(const Field& field, const Lattice& lattice, const LatticeDeformation* deformation,
                                const SurfaceOptions& options)
     : mImpl(std::make_unique<Impl>(field, lattice, deformation, options)) {
@@ -619,14 +412,18 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> onSurface(*deformation.onSurface);
         openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false> offsets(*deformation.offsets);
+        auto placed = [&](const Coord& n) {
+            const openvdb::Vec3f o = offsets.getValue(n);
+            return Vec3f(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(o.x(), o.y(), o.z()));
+        };
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
             LeafWork& w = im.work[li];
             if (w.vertices.empty()) continue;
             // Only nodes of this leaf's block (origin .. origin + 8) can be edge ends here.
             if (!anyActiveNode(onSurface, w.origin)) continue;
-            std::vector<std::uint32_t> atDataNode;
-            for (const auto& nv : w.nodeVertices) atDataNode.push_back(nv.first);
-            std::sort(atDataNode.begin(), atDataNode.end());
+            // Vertices already on a node (a data node at the iso value): (vertex, node), by vertex.
+            std::vector<std::pair<std::uint32_t, Coord>> atDataNode(w.nodeVertices.begin(), w.nodeVertices.end());
+            std::sort(atDataNode.begin(), atDataNode.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
             const MaskLeaf& leaf = im.leafManager.leaf(li);
             std::size_t rank = 0;
             for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
@@ -638,15 +435,23 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
                 for (int e = 0; e < 12; ++e) {
                     if (!(owned & (1u << e))) continue;
                     const std::uint32_t v = local++;
-                    if (std::binary_search(atDataNode.begin(), atDataNode.end(), v)) continue;
+                    const auto data = std::lower_bound(atDataNode.begin(), atDataNode.end(), v,
+                                                       [](const auto& x, std::uint32_t u) { return x.first < u; });
+                    if (data != atDataNode.end() && data->first == v) {
+                        // At a data node: it stays there, but follows the node onto a feature.
+                        if (onSurface.isValueOn(data->second)) {
+                            w.vertices[v] = placed(data->second);
+                            ++movedPerLeaf[li];
+                        }
+                        continue;
+                    }
                     const Vec3i eo = cubeEdgeOrigin(e);
                     const Coord a = cell.offsetBy(eo.x, eo.y, eo.z);
                     Coord b = a;
                     b[cubeEdgeAxis(e)] += 1;
                     const Coord* n = onSurface.isValueOn(a) ? &a : (onSurface.isValueOn(b) ? &b : nullptr);
                     if (!n) continue;
-                    const openvdb::Vec3f o = offsets.getValue(*n);
-                    w.vertices[v] = Vec3f(frame.nodeWorld(Vec3i(n->x(), n->y(), n->z())) + Vec3d(o.x(), o.y(), o.z()));
+                    w.vertices[v] = placed(*n);
                     w.nodeVertices.emplace_back(v, *n);
                     ++movedPerLeaf[li];
                 }
@@ -743,7 +548,13 @@ Mesh LatticeSurface::mesh() {
         }
     });
     if (im.options.cancel) im.options.cancel->check();
-    im.weldNodeVertices(mesh);
+    std::vector<std::pair<std::uint32_t, Vec3i>> atNode; // (vertex, node), in leaf order
+    for (const LeafWork& w : im.work)
+        for (const auto& [local, node] : w.nodeVertices) atNode.emplace_back(w.vertexBase + local, Vec3i(node.x(), node.y(), node.z()));
+    const NodeWeldStats welding = weldNodeVertices(mesh, atNode);
+    im.stats.weldedVertices = welding.weldedVertices;
+    im.stats.collapsedPolygons = welding.collapsedPolygons;
+    im.stats.splitVertices = welding.splitVertices;
     im.stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return mesh;
 }

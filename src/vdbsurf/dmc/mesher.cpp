@@ -103,7 +103,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         if (ss.flipped > 0) {
             // Nodes changed side: cell cases changed around them. The leaves there are computed
             // again (or, for tests, the whole surface).
-            activateCellsAroundMovedNodes(lattice, deformation);
+            activateCellsAround(lattice, ss.changedNodes);
             if (request.patchAfterFlips) {
                 surface->rebuildAround(ss.changedNodes, deformation);
                 surface->moveCrossingsToFeatureNodes(deformation);

@@ -99,10 +99,11 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     };
     tbb::enumerable_thread_specific<Local> locals;
     auto within = [&](const Vec3d& p, double cells) {
-        const Vec3d g = field.gradient(p);
+        Vec3d g;
+        const double v = field.valueAndGradient(p, g);
         const double len = length(g);
         if (!(len > 0) || !std::isfinite(len)) return false;
-        return std::fabs(field.value(p) - iso) <= cells * h * len;
+        return std::fabs(v - iso) <= cells * h * len;
     };
     auto nearSurface = [&](const Vec3d& p) { return within(p, kMaxSurfaceDistance); };
     auto facesFlat = [&](const Vec3d& feature, std::initializer_list<Vec3d> crossings) {

@@ -58,6 +58,12 @@ public:
 
     virtual double value(const Vec3d& p) const = 0;
     virtual Vec3d gradient(const Vec3d& p) const = 0;
+    // value(p), with gradient(p) in `gradient`: exactly those two results. Fields override it
+    // when both share their samples (a grid's voxels).
+    virtual double valueAndGradient(const Vec3d& p, Vec3d& gradient) const {
+        gradient = this->gradient(p);
+        return value(p);
+    }
     // Conservative: every value() at a point of the closed box lies in the result.
     virtual Interval bounds(const Box3& box) const = 0;
     virtual Inside inside() const = 0;

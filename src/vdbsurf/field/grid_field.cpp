@@ -49,6 +49,7 @@ struct GridField::Impl {
     virtual ~Impl() = default;
     virtual double value(const Vec3d& p) const = 0;
     virtual Vec3d gradient(const Vec3d& p) const = 0;
+    virtual double valueAndGradient(const Vec3d& p, Vec3d& gradient) const = 0;
     virtual Interval bounds(const Box3& box) const = 0;
     virtual Box3 domain() const = 0;
     virtual Interval valueRange() const = 0;
@@ -120,6 +121,46 @@ public:
             g[a] = double(openvdb::tools::BoxSampler::sample(acc, hi)) - double(openvdb::tools::BoxSampler::sample(acc, lo));
         }
         return toVec(mGrid->transform().baseMap()->applyIJT(g));
+    }
+
+    double valueAndGradient(const Vec3d& p, Vec3d& gradient) const override {
+        // The value and the six samples of gradient() read the 3x3x3 voxels from
+        // floor(ip - 0.5): fetched once, then interpolated as BoxSampler does (same arithmetic,
+        // so the results are value()'s and gradient()'s bit for bit).
+        using ValueT = typename TreeT::ValueType;
+        const openvdb::Vec3d ip = worldToIndex(p);
+        const Coord base(int(std::floor(ip.x() - 0.5)), int(std::floor(ip.y() - 0.5)), int(std::floor(ip.z() - 0.5)));
+        openvdb::Vec3d samples[7] = {ip, ip, ip, ip, ip, ip, ip}; // ip, then lo/hi per axis
+        for (int a = 0; a < 3; ++a) samples[1 + 2 * a][a] -= 0.5, samples[2 + 2 * a][a] += 0.5;
+        Coord corner[7];
+        for (int s = 0; s < 7; ++s) {
+            const openvdb::Vec3d& q = samples[s];
+            corner[s] = Coord(int(std::floor(q.x())), int(std::floor(q.y())), int(std::floor(q.z())));
+            const Coord d = corner[s] - base;
+            // Rounding of ip +- 0.5 can step outside the block: the plain calls are exact there.
+            if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() > 1 || d.y() > 1 || d.z() > 1) {
+                gradient = this->gradient(p);
+                return value(p);
+            }
+        }
+        Acc acc(mTree);
+        ValueT block[3][3][3];
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j)
+                for (int k = 0; k < 3; ++k) block[i][j][k] = acc.getValue(base.offsetBy(i, j, k));
+        auto sample = [&](int s) {
+            const Coord d = corner[s] - base;
+            ValueT data[2][2][2];
+            for (int i = 0; i < 2; ++i)
+                for (int j = 0; j < 2; ++j)
+                    for (int k = 0; k < 2; ++k) data[i][j][k] = block[d.x() + i][d.y() + j][d.z() + k];
+            const openvdb::Vec3d uvw = samples[s] - openvdb::Vec3d(corner[s].x(), corner[s].y(), corner[s].z());
+            return double(openvdb::tools::BoxSampler::trilinearInterpolation(data, uvw));
+        };
+        openvdb::Vec3d g;
+        for (int a = 0; a < 3; ++a) g[a] = sample(2 + 2 * a) - sample(1 + 2 * a);
+        gradient = toVec(mGrid->transform().baseMap()->applyIJT(g));
+        return sample(0);
     }
 
     Interval bounds(const Box3& box) const override {
@@ -517,6 +558,7 @@ GridField::~GridField() = default;
 
 double GridField::value(const Vec3d& p) const { return mImpl->value(p); }
 Vec3d GridField::gradient(const Vec3d& p) const { return mImpl->gradient(p); }
+double GridField::valueAndGradient(const Vec3d& p, Vec3d& gradient) const { return mImpl->valueAndGradient(p, gradient); }
 Interval GridField::bounds(const Box3& box) const { return mImpl->bounds(box); }
 Box3 GridField::domain() const { return mImpl->domain(); }
 std::optional<double> GridField::naturalSpacing() const { return mImpl->voxelSize(); }

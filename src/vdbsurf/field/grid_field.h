@@ -20,6 +20,7 @@ public:
 
     double value(const Vec3d& p) const override;
     Vec3d gradient(const Vec3d& p) const override;
+    double valueAndGradient(const Vec3d& p, Vec3d& gradient) const override;
     Interval bounds(const Box3& box) const override;
     Inside inside() const override { return mInside; }
     Box3 domain() const override;

@@ -80,44 +80,60 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
 namespace {
 
 // Calls extra(candidate, corner, fan) for every corner at a candidate vertex that is not in the
-// fan of the vertex's first corner (fan: 1, 2, ... per further fan, in polygon order).
+// fan of the vertex's first corner (fan: 1, 2, ... per further fan, in polygon order). Only the
+// listed polygons (ascending) are looked at when `polygons` is given.
 template <typename F>
-void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidates, F&& extra) {
+void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons,
+                           F&& extra) {
     std::sort(candidates.begin(), candidates.end());
     candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
     if (candidates.empty()) return;
     constexpr std::uint32_t kNone = ~0u;
     std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
     for (std::uint32_t i = 0; i < candidates.size(); ++i) slot[candidates[i]] = i;
-    // The corners at each candidate with their polygon neighbours, in polygon order.
+    // The corners at each candidate with their polygon neighbours, in polygon order: candidate
+    // s owns corners[first[s] .. first[s + 1]) (counted, then filled: no vector per candidate).
     struct Corner {
         std::uint32_t corner, prev, next;
     };
-    std::vector<std::vector<Corner>> at(candidates.size());
-    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
-        const std::uint32_t first = mesh.offsets[f], n = mesh.polygonSize(f);
-        for (std::uint32_t k = 0; k < n; ++k) {
-            const std::uint32_t s = slot[mesh.indices[first + k]];
-            if (s == kNone) continue;
-            at[s].push_back({first + k, mesh.indices[first + (k + n - 1) % n], mesh.indices[first + (k + 1) % n]});
+    const std::size_t scanned = polygons ? polygons->size() : mesh.polygonCount();
+    auto forEachCandidateCorner = [&](auto&& visit) {
+        for (std::size_t i = 0; i < scanned; ++i) {
+            const std::size_t f = polygons ? (*polygons)[i] : i;
+            const std::uint32_t first = mesh.offsets[f], n = mesh.polygonSize(f);
+            for (std::uint32_t k = 0; k < n; ++k) {
+                const std::uint32_t s = slot[mesh.indices[first + k]];
+                if (s != kNone) visit(s, first, n, k);
+            }
         }
+    };
+    std::vector<std::uint32_t> first(candidates.size() + 1, 0);
+    forEachCandidateCorner([&](std::uint32_t s, std::uint32_t, std::uint32_t, std::uint32_t) { ++first[s + 1]; });
+    for (std::size_t s = 0; s < candidates.size(); ++s) first[s + 1] += first[s];
+    std::vector<Corner> corners(first.back());
+    {
+        std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
+        forEachCandidateCorner([&](std::uint32_t s, std::uint32_t b, std::uint32_t n, std::uint32_t k) {
+            corners[fill[s]++] = {b + k, mesh.indices[b + (k + n - 1) % n], mesh.indices[b + (k + 1) % n]};
+        });
     }
     std::vector<std::uint32_t> parent, fanOfRoot;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> byNeighbour; // (neighbour vertex, corner slot)
     for (std::size_t s = 0; s < candidates.size(); ++s) {
-        const std::vector<Corner>& corners = at[s];
-        if (corners.size() < 2) continue;
+        const Corner* at = corners.data() + first[s];
+        const std::uint32_t count = first[s + 1] - first[s];
+        if (count < 2) continue;
         // Corners sharing an edge at the vertex (a neighbour vertex) are in one fan.
-        parent.resize(corners.size());
-        for (std::uint32_t i = 0; i < corners.size(); ++i) parent[i] = i;
+        parent.resize(count);
+        for (std::uint32_t i = 0; i < count; ++i) parent[i] = i;
         auto find = [&](std::uint32_t x) {
             while (parent[x] != x) x = parent[x] = parent[parent[x]];
             return x;
         };
         byNeighbour.clear();
-        for (std::uint32_t i = 0; i < corners.size(); ++i) {
-            byNeighbour.emplace_back(corners[i].prev, i);
-            byNeighbour.emplace_back(corners[i].next, i);
+        for (std::uint32_t i = 0; i < count; ++i) {
+            byNeighbour.emplace_back(at[i].prev, i);
+            byNeighbour.emplace_back(at[i].next, i);
         }
         std::sort(byNeighbour.begin(), byNeighbour.end());
         for (std::size_t i = 1; i < byNeighbour.size(); ++i)
@@ -125,24 +141,24 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
                 const std::uint32_t a = find(byNeighbour[i].second), b = find(byNeighbour[i - 1].second);
                 if (a != b) parent[std::max(a, b)] = std::min(a, b); // a fan's root is its first corner
             }
-        fanOfRoot.assign(corners.size(), 0);
+        fanOfRoot.assign(count, 0);
         std::uint32_t fans = 0;
-        for (std::uint32_t i = 0; i < corners.size(); ++i) {
+        for (std::uint32_t i = 0; i < count; ++i) {
             const std::uint32_t r = find(i);
             if (r == 0) continue;
             if (fanOfRoot[r] == 0) fanOfRoot[r] = ++fans;
-            extra(candidates[s], corners[i].corner, fanOfRoot[r]);
+            extra(candidates[s], at[i].corner, fanOfRoot[r]);
         }
     }
 }
 
 } // namespace
 
-std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates) {
+std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons) {
     std::size_t copies = 0;
     std::uint32_t lastVertex = ~0u, lastFan = 0, firstCopy = 0;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> rewrite; // (corner, new vertex)
-    forEachExtraFanCorner(mesh, std::move(candidates), [&](std::uint32_t v, std::uint32_t corner, std::uint32_t fan) {
+    forEachExtraFanCorner(mesh, std::move(candidates), polygons, [&](std::uint32_t v, std::uint32_t corner, std::uint32_t fan) {
         if (v != lastVertex) lastVertex = v, lastFan = 0, firstCopy = std::uint32_t(mesh.points.size());
         if (fan > lastFan) { // fans are numbered in order of first appearance
             mesh.points.push_back(mesh.points[v]);
@@ -158,7 +174,7 @@ std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates) {
 std::size_t countSplitFans(const Mesh& mesh, std::vector<std::uint32_t> candidates) {
     std::size_t count = 0;
     std::uint32_t lastVertex = ~0u;
-    forEachExtraFanCorner(mesh, std::move(candidates), [&](std::uint32_t v, std::uint32_t, std::uint32_t) {
+    forEachExtraFanCorner(mesh, std::move(candidates), nullptr, [&](std::uint32_t v, std::uint32_t, std::uint32_t) {
         if (v != lastVertex) ++count, lastVertex = v;
     });
     return count;

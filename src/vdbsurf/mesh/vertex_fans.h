@@ -25,8 +25,9 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
 // Vertices among `candidates` where several fans of polygons meet (edge-manifold surfaces that
 // touch at a point) get one copy per further fan, appended to points, so the mesh becomes
 // vertex-manifold; the fan holding the vertex's first corner in polygon order keeps it, so the
-// result is deterministic. Returns the number of copies made.
-std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates);
+// result is deterministic. Returns the number of copies made. When every polygon at a candidate
+// is among `polygons` (ascending), only those are looked at.
+std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons = nullptr);
 
 // How many of `candidates` have more than one fan (what splitFansAt would split).
 std::size_t countSplitFans(const Mesh& mesh, std::vector<std::uint32_t> candidates);

@@ -1,0 +1,360 @@
+#include "vdbsurf/dmc/node_weld.h"
+
+#include "vdbsurf/mesh/vertex_fans.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <atomic>
+#include <memory>
+#include <stdexcept>
+#include <tuple>
+
+namespace vdbsurf {
+
+namespace {
+
+constexpr std::uint32_t kNone = ~0u;
+// Work is split into chunks of this many items whatever the thread count, and chunk results are
+// joined in chunk order: the output is the same with any number of threads.
+constexpr std::size_t kChunk = 2048;
+
+std::size_t chunkCount(std::size_t n) { return (n + kChunk - 1) / kChunk; }
+
+template <typename Body>
+void forEachChunk(std::size_t n, Body&& body) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunkCount(n), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t c = r.begin(); c < r.end(); ++c) body(c, c * kChunk, std::min(n, (c + 1) * kChunk));
+    });
+}
+
+// Exclusive prefix sums of `counts`, with the total appended.
+template <typename T>
+std::vector<std::size_t> prefixSums(const std::vector<T>& counts) {
+    std::vector<std::size_t> base(counts.size() + 1, 0);
+    for (std::size_t i = 0; i < counts.size(); ++i) base[i + 1] = base[i] + counts[i];
+    return base;
+}
+
+struct Loops {
+    std::vector<std::uint32_t> offsets{0}, indices;
+    std::size_t count() const { return offsets.size() - 1; }
+    std::uint32_t size(std::size_t l) const { return offsets[l + 1] - offsets[l]; }
+    const std::uint32_t* loop(std::size_t l) const { return indices.data() + offsets[l]; }
+};
+
+// Chunks of loops joined in order into one list.
+Loops joinLoops(const std::vector<Loops>& parts) {
+    std::vector<std::size_t> loopCount, indexCount;
+    for (const Loops& p : parts) loopCount.push_back(p.count()), indexCount.push_back(p.indices.size());
+    const std::vector<std::size_t> loopBase = prefixSums(loopCount), indexBase = prefixSums(indexCount);
+    Loops all;
+    all.offsets.assign(loopBase.back() + 1, 0);
+    all.indices.resize(indexBase.back());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, parts.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t c = r.begin(); c < r.end(); ++c) {
+            const Loops& p = parts[c];
+            std::copy(p.indices.begin(), p.indices.end(), all.indices.begin() + std::ptrdiff_t(indexBase[c]));
+            for (std::size_t l = 1; l <= p.count(); ++l) all.offsets[loopBase[c] + l] = std::uint32_t(p.offsets[l] + indexBase[c]);
+        }
+    });
+    return all;
+}
+
+// A polygon after welding: runs of one vertex merged, and split into simple loops where a vertex
+// comes back (a pinched polygon); loops under three vertices have collapsed.
+class LoopCleaner {
+public:
+    std::uint64_t collapsed = 0;
+    void emit(const std::vector<std::uint32_t>& loop, Loops& out) {
+        clean.clear();
+        for (std::uint32_t v : loop)
+            if (clean.empty() || clean.back() != v) clean.push_back(v);
+        while (clean.size() > 1 && clean.front() == clean.back()) clean.pop_back();
+        if (clean.size() < 3) {
+            ++collapsed;
+            return;
+        }
+        for (std::size_t i = 0; i < clean.size(); ++i)
+            for (std::size_t j = i + 1; j < clean.size(); ++j)
+                if (clean[i] == clean[j]) {
+                    const std::vector<std::uint32_t> a(clean.begin() + std::ptrdiff_t(i), clean.begin() + std::ptrdiff_t(j));
+                    std::vector<std::uint32_t> b(clean.begin(), clean.begin() + std::ptrdiff_t(i));
+                    b.insert(b.end(), clean.begin() + std::ptrdiff_t(j), clean.end());
+                    emit(a, out);
+                    emit(b, out);
+                    return;
+                }
+        out.indices.insert(out.indices.end(), clean.begin(), clean.end());
+        out.offsets.push_back(std::uint32_t(out.indices.size()));
+    }
+
+private:
+    std::vector<std::uint32_t> clean; // reused: most loops need no split, so no allocation
+};
+
+// For each entry of atNode, the first vertex listed for its node.
+std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+    struct Key {
+        int x, y, z;
+        std::uint32_t k;
+        bool operator<(const Key& o) const { return std::tie(x, y, z, k) < std::tie(o.x, o.y, o.z, o.k); }
+    };
+    std::vector<Key> keys(atNode.size());
+    for (std::size_t k = 0; k < atNode.size(); ++k) keys[k] = {atNode[k].second.x, atNode[k].second.y, atNode[k].second.z, std::uint32_t(k)};
+    tbb::parallel_sort(keys.begin(), keys.end());
+    std::vector<std::uint32_t> repOf(atNode.size());
+    for (std::size_t i = 0; i < keys.size();) {
+        std::size_t j = i;
+        while (j < keys.size() && std::tie(keys[j].x, keys[j].y, keys[j].z) == std::tie(keys[i].x, keys[i].y, keys[i].z)) ++j;
+        for (std::size_t t = i; t < j; ++t) repOf[keys[t].k] = atNode[keys[i].k].first;
+        i = j;
+    }
+    return repOf;
+}
+
+// Undirected edges at a welded vertex, with their direction: only such edges can have become
+// shared by more than two polygons (every polygon with one is a candidate). Sorted.
+std::vector<std::pair<std::uint64_t, int>> edgesAtWelds(const Loops& loops, const std::vector<std::uint8_t>& isRep) {
+    std::vector<std::vector<std::pair<std::uint64_t, int>>> parts(chunkCount(loops.count()));
+    forEachChunk(loops.count(), [&](std::size_t c, std::size_t b, std::size_t e) {
+        for (std::size_t l = b; l < e; ++l) {
+            const std::uint32_t* p = loops.loop(l);
+            const std::uint32_t n = loops.size(l);
+            for (std::uint32_t i = 0; i < n; ++i) {
+                const std::uint32_t a = p[i], z = p[i + 1 < n ? i + 1 : 0];
+                if (!isRep[a] && !isRep[z]) continue;
+                parts[c].emplace_back((std::uint64_t(std::min(a, z)) << 32) | std::max(a, z), a < z ? 1 : -1);
+            }
+        }
+    });
+    std::vector<std::pair<std::uint64_t, int>> edges;
+    for (const auto& p : parts) edges.insert(edges.end(), p.begin(), p.end());
+    tbb::parallel_sort(edges.begin(), edges.end());
+    return edges;
+}
+
+bool reversedLoops(const Loops& loops, std::size_t x, std::size_t y) {
+    const std::uint32_t n = loops.size(x);
+    if (loops.size(y) != n) return false;
+    const std::uint32_t *a = loops.loop(x), *b = loops.loop(y);
+    const std::uint32_t* at = std::find(b, b + n, a[0]);
+    if (at == b + n) return false;
+    const std::uint32_t s = std::uint32_t(at - b);
+    for (std::uint32_t i = 1; i < n; ++i)
+        if (a[i] != b[(s + n - i) % n]) return false;
+    return true;
+}
+
+std::uint64_t mixBits(std::uint64_t v) {
+    v ^= v >> 33;
+    v *= 0xff51afd7ed558ccdull;
+    v ^= v >> 33;
+    v *= 0xc4ceb9fe1a85ec53ull;
+    return v ^ (v >> 33);
+}
+
+// Marks both loops of every reversed pair (pillow[l] = 1) among the loops through a welded
+// vertex: on an edge-manifold surface their edges belong to them alone, so dropping them leaves
+// nothing open, and a loop has at most one reversed twin. Twins share an order-free hash of
+// their vertices; only loops with equal hashes are compared. Returns the number marked.
+std::uint64_t markReversedPairs(const Loops& loops, const std::vector<std::uint8_t>& welded, std::vector<std::uint8_t>& pillow) {
+    pillow.assign(loops.count(), 0);
+    std::vector<std::vector<std::pair<std::uint64_t, std::uint32_t>>> parts(chunkCount(loops.count()));
+    forEachChunk(loops.count(), [&](std::size_t c, std::size_t b, std::size_t e) {
+        for (std::size_t l = b; l < e; ++l) {
+            const std::uint32_t* p = loops.loop(l);
+            const std::uint32_t n = loops.size(l);
+            if (std::none_of(p, p + n, [&](std::uint32_t v) { return welded[v] != 0; })) continue;
+            std::uint64_t h = mixBits(n);
+            for (std::uint32_t i = 0; i < n; ++i) h += mixBits(p[i] + 1);
+            parts[c].emplace_back(h, std::uint32_t(l));
+        }
+    });
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed;
+    for (const auto& p : parts) keyed.insert(keyed.end(), p.begin(), p.end());
+    tbb::parallel_sort(keyed.begin(), keyed.end());
+    std::uint64_t marked = 0;
+    for (std::size_t i = 0; i < keyed.size();) {
+        std::size_t j = i;
+        while (j < keyed.size() && keyed[j].first == keyed[i].first) ++j;
+        for (std::size_t x = i; x < j; ++x) {
+            if (pillow[keyed[x].second]) continue;
+            for (std::size_t y = x + 1; y < j; ++y)
+                if (!pillow[keyed[y].second] && reversedLoops(loops, keyed[x].second, keyed[y].second)) {
+                    pillow[keyed[x].second] = pillow[keyed[y].second] = 1;
+                    marked += 2;
+                    break;
+                }
+        }
+        i = j;
+    }
+    return marked;
+}
+
+// The mesh's polygons with each candidate replaced by its loops (pillows left out); the new
+// numbers of the polygons that came from candidates (ascending) go to fromCandidates.
+void replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidateOf, const std::vector<std::uint32_t>& firstLoop,
+                       const Loops& loops, const std::vector<std::uint8_t>& pillow, std::vector<std::uint32_t>& fromCandidates) {
+    const std::size_t polygons = mesh.polygonCount();
+    const std::size_t chunks = chunkCount(polygons);
+    std::vector<std::size_t> polygonCount(chunks, 0), indexCount(chunks, 0);
+    auto forEachOutput = [&](std::size_t b, std::size_t e, auto&& out) {
+        for (std::size_t f = b; f < e; ++f) {
+            const std::uint32_t c = candidateOf[f];
+            if (c == kNone) {
+                out(mesh.indices.data() + mesh.offsets[f], mesh.polygonSize(f), false);
+                continue;
+            }
+            for (std::uint32_t l = firstLoop[c]; l < firstLoop[c + 1]; ++l)
+                if (!pillow[l]) out(loops.loop(l), loops.size(l), true);
+        }
+    };
+    forEachChunk(polygons, [&](std::size_t c, std::size_t b, std::size_t e) {
+        forEachOutput(b, e, [&](const std::uint32_t*, std::uint32_t n, bool) { ++polygonCount[c], indexCount[c] += n; });
+    });
+    const std::vector<std::size_t> polygonBase = prefixSums(polygonCount), indexBase = prefixSums(indexCount);
+    std::vector<std::uint32_t> offsets(polygonBase.back() + 1, 0), indices(indexBase.back());
+    std::vector<std::vector<std::uint32_t>> fromParts(chunks);
+    forEachChunk(polygons, [&](std::size_t c, std::size_t b, std::size_t e) {
+        std::size_t f = polygonBase[c], i = indexBase[c];
+        forEachOutput(b, e, [&](const std::uint32_t* p, std::uint32_t n, bool fromCandidate) {
+            if (fromCandidate) fromParts[c].push_back(std::uint32_t(f));
+            std::copy(p, p + n, indices.begin() + std::ptrdiff_t(i));
+            i += n;
+            offsets[++f] = std::uint32_t(i);
+        });
+    });
+    fromCandidates.clear();
+    for (const auto& p : fromParts) fromCandidates.insert(fromCandidates.end(), p.begin(), p.end());
+    mesh.offsets = std::move(offsets);
+    mesh.indices = std::move(indices);
+}
+
+// Drops the points no polygon uses, keeping the order of the rest; returns old -> new (kNone
+// for dropped points).
+std::vector<std::uint32_t> dropUnusedPoints(Mesh& mesh) {
+    const std::size_t n = mesh.points.size();
+    std::unique_ptr<std::atomic<std::uint8_t>[]> used(new std::atomic<std::uint8_t>[n]);
+    forEachChunk(n, [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t v = b; v < e; ++v) used[v].store(0, std::memory_order_relaxed);
+    });
+    forEachChunk(mesh.indices.size(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) used[mesh.indices[i]].store(1, std::memory_order_relaxed);
+    });
+    std::vector<std::uint32_t> kept(chunkCount(n), 0);
+    forEachChunk(n, [&](std::size_t c, std::size_t b, std::size_t e) {
+        for (std::size_t v = b; v < e; ++v) kept[c] += used[v].load(std::memory_order_relaxed);
+    });
+    const std::vector<std::size_t> base = prefixSums(kept);
+    std::vector<std::uint32_t> newId(n, kNone);
+    std::vector<Vec3f> points(base.back());
+    forEachChunk(n, [&](std::size_t c, std::size_t b, std::size_t e) {
+        std::size_t next = base[c];
+        for (std::size_t v = b; v < e; ++v)
+            if (used[v].load(std::memory_order_relaxed)) newId[v] = std::uint32_t(next), points[next++] = mesh.points[v];
+    });
+    forEachChunk(mesh.indices.size(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t i = b; i < e; ++i) mesh.indices[i] = newId[mesh.indices[i]];
+    });
+    mesh.points = std::move(points);
+    return newId;
+}
+
+} // namespace
+
+NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+    NodeWeldStats stats;
+    if (atNode.empty()) return stats;
+    const std::vector<std::uint32_t> repOf = representatives(atNode);
+
+    // Only polygons through a vertex on a node can change: the attempts below redo just those.
+    std::vector<std::uint8_t> onNode(mesh.points.size(), 0);
+    for (const auto& [v, node] : atNode) onNode[v] = 1;
+    std::vector<std::uint8_t> touches(mesh.polygonCount(), 0);
+    forEachChunk(mesh.polygonCount(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t f = b; f < e; ++f) {
+            const std::uint32_t* p = mesh.polygon(f);
+            touches[f] = std::any_of(p, p + mesh.polygonSize(f), [&](std::uint32_t v) { return onNode[v] != 0; });
+        }
+    });
+    std::vector<std::uint32_t> candidates, candidateOf(mesh.polygonCount(), kNone);
+    for (std::uint32_t f = 0; f < touches.size(); ++f)
+        if (touches[f]) candidateOf[f] = std::uint32_t(candidates.size()), candidates.push_back(f);
+
+    std::vector<std::uint32_t> remap(mesh.points.size());
+    for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
+    std::vector<std::uint8_t> isRep(mesh.points.size(), 0), apart(mesh.points.size(), 0); // apart: by representative
+    for (int attempt = 0;; ++attempt) {
+        for (std::size_t k = 0; k < atNode.size(); ++k) remap[atNode[k].first] = atNode[k].first, isRep[repOf[k]] = 0;
+        std::uint64_t welded = 0;
+        for (std::size_t k = 0; k < atNode.size(); ++k) {
+            const std::uint32_t v = atNode[k].first, rep = repOf[k];
+            if (apart[rep] || rep == v) continue;
+            remap[v] = rep;
+            ++welded;
+            isRep[rep] = 1;
+        }
+        if (welded == 0) return stats;
+
+        // The candidates' polygons after welding: candidate k becomes loops [firstLoop[k], firstLoop[k + 1]).
+        std::vector<Loops> parts(chunkCount(candidates.size()));
+        std::vector<std::uint32_t> loopsOf(candidates.size());
+        std::vector<std::uint64_t> collapsedIn(parts.size(), 0);
+        forEachChunk(candidates.size(), [&](std::size_t c, std::size_t b, std::size_t e) {
+            LoopCleaner cleaner;
+            std::vector<std::uint32_t> poly;
+            for (std::size_t k = b; k < e; ++k) {
+                const std::uint32_t f = candidates[k];
+                poly.clear();
+                for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) poly.push_back(remap[mesh.indices[i]]);
+                const std::size_t before = parts[c].count();
+                cleaner.emit(poly, parts[c]);
+                loopsOf[k] = std::uint32_t(parts[c].count() - before);
+            }
+            collapsedIn[c] = cleaner.collapsed;
+        });
+        const Loops loops = joinLoops(parts);
+        parts.clear();
+        std::vector<std::uint32_t> firstLoop(candidates.size() + 1, 0);
+        for (std::size_t k = 0; k < candidates.size(); ++k) firstLoop[k + 1] = firstLoop[k] + loopsOf[k];
+
+        const auto edges = edgesAtWelds(loops, isRep);
+        bool bad = false;
+        for (std::size_t i = 0; i < edges.size();) {
+            std::size_t j = i;
+            int sum = 0;
+            while (j < edges.size() && edges[j].first == edges[i].first) sum += edges[j++].second;
+            if (j - i > 2 || (j - i == 2 && sum != 0)) {
+                for (const std::uint32_t v : {std::uint32_t(edges[i].first >> 32), std::uint32_t(edges[i].first)})
+                    if (isRep[v]) apart[v] = 1;
+                bad = true;
+            }
+            i = j;
+        }
+        if (bad && attempt < 8) continue;
+        if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
+
+        // Edge-manifold now, so a reversed pair is a closed piece of its own.
+        std::vector<std::uint8_t> pillow;
+        std::uint64_t collapsed = markReversedPairs(loops, isRep, pillow);
+        for (std::uint64_t c : collapsedIn) collapsed += c;
+        std::vector<std::uint32_t> fromCandidates;
+        replaceCandidates(mesh, candidateOf, firstLoop, loops, pillow, fromCandidates);
+        const std::vector<std::uint32_t> newId = dropUnusedPoints(mesh);
+        stats.weldedVertices = welded;
+        stats.collapsedPolygons = collapsed;
+        // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
+        // feature node between two fans) gets one vertex per fan: the mesh stays vertex-manifold.
+        // Welded vertices lie on polygons that came from candidates alone.
+        std::vector<std::uint32_t> welds;
+        for (std::uint32_t rep : repOf)
+            if (isRep[rep] && newId[rep] != kNone) welds.push_back(newId[rep]);
+        stats.splitVertices = splitFansAt(mesh, std::move(welds), &fromCandidates);
+        return stats;
+    }
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,33 @@
+// Welding the vertices that sit on one lattice node. A node whose value is exactly the iso value
+// (data, or a node placed on a sharp feature) carries the crossing of each of its edges at the
+// node itself; those vertices become one, the polygons that collapse are removed, and so are
+// the closed zero-volume pillows (a polygon and its reverse) that welding can leave. Where
+// welding a node would make an edge shared by more than two polygons (or twice in one
+// direction), that node keeps its vertices apart, as plain marching cubes would. Where separate
+// fans of polygons then meet at a welded vertex, each further fan gets its own copy, so the mesh
+// stays vertex-manifold. Unused vertices are removed.
+//
+// Only polygons through a node vertex can change; the work is done on them alone, in parallel
+// over fixed chunks, so the output does not depend on the number of threads.
+#pragma once
+#include "vdbsurf/core/vec3.h"
+#include "vdbsurf/mesh/mesh.h"
+
+#include <cstdint>
+#include <utility>
+#include <vector>
+
+namespace vdbsurf {
+
+struct NodeWeldStats {
+    std::uint64_t weldedVertices = 0;    // vertices merged into their node's first vertex
+    std::uint64_t collapsedPolygons = 0; // polygons that lost their area (pillows included)
+    std::uint64_t splitVertices = 0;     // welded vertices given one copy per further fan
+};
+
+// `atNode` lists (vertex, node) for every vertex on a node, in a fixed order: the first vertex
+// listed for a node represents it. Throws std::logic_error if no choice of nodes to keep apart
+// leaves an edge-manifold mesh within a few attempts (not seen on marching-cubes meshes).
+NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode);
+
+} // namespace vdbsurf
