@@ -118,6 +118,33 @@ TEST_CASE("grid bounds are tight on a level set: boxes away from the surface do 
     CHECK(d.max.x < 1.5);
 }
 
+TEST_CASE("tiles count: the domain covers tiles that differ from the background, bounds see their values") {
+    initializeOpenVdb();
+    auto g = openvdb::FloatGrid::create(1.0f);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(0.5));
+    // A leaf-sized tile (8^3, in a lower internal node), a 128^3 tile (in an upper one), an
+    // inactive tile with another value, and one voxel.
+    g->tree().fill(openvdb::CoordBBox::createCube({8, 8, 8}, 8), -2.0f, true);
+    g->tree().fill(openvdb::CoordBBox::createCube({-256, 0, 0}, 128), -3.0f, true);
+    g->tree().fill(openvdb::CoordBBox::createCube({0, 0, 512}, 8), 5.0f, false);
+    g->tree().setValue({0, 0, 0}, 0.5f);
+    REQUIRE(g->tree().leafCount() == 1);
+    GridField f(g, "tiles");
+    const Box3 d = f.domain();
+    CHECK(d.min.x == Approx(-257 * 0.5));
+    CHECK(d.max.x == Approx(16 * 0.5));
+    CHECK(d.max.z == Approx(520 * 0.5));
+    CHECK(f.bounds(Box3{{5, 5, 5}, {6, 6, 6}}).hi == Approx(-2.0));
+    CHECK(f.bounds(Box3{{-100, 10, 10}, {-90, 20, 20}}).lo == Approx(-3.0));
+    CHECK(f.bounds(Box3{{1, 1, 257}, {2, 2, 258}}).hi == Approx(5.0));
+    CHECK(f.valueRange().lo == Approx(-3.0));
+    CHECK(f.valueRange().hi == Approx(5.0));
+    auto nanTile = openvdb::FloatGrid::create(0.f);
+    nanTile->tree().fill(openvdb::CoordBBox::createCube({16, 0, 0}, 8), std::numeric_limits<float>::quiet_NaN(), true);
+    nanTile->tree().setValue({0, 0, 0}, 1.0f);
+    CHECK_THROWS_WITH(GridField(nanTile, "t.vdb:d"), Catch::Contains("t.vdb:d") && Catch::Contains("tile at (16, 0, 0)"));
+}
+
 TEST_CASE("grid class decides inside and the default iso") {
     auto ls = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.1);
     GridField a(ls, "ls");

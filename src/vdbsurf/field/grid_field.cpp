@@ -89,7 +89,7 @@ public:
         mVoxel = std::min({vs.x(), vs.y(), vs.z()});
         if (!(mVoxel > 0) || !std::isfinite(mVoxel)) throw Error(label, "has a degenerate transform (voxel size 0)");
         mOrigin = toVec(mGrid->indexToWorld(openvdb::Vec3d(0.0)));
-        computeMinMax(label);
+        computeSummaries(label);
         computeDomain(label);
     }
 
@@ -370,61 +370,80 @@ private:
                 }
     }
 
-    void computeMinMax(const std::string& label) {
-        openvdb::tree::LeafManager<const TreeT> leaves(mTree);
-        std::vector<MinMax> leafMM(leaves.leafCount());
-        std::vector<std::int64_t> bad(leaves.leafCount(), -1);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount()), [&](const tbb::blocked_range<std::size_t>& r) {
-            for (std::size_t i = r.begin(); i < r.end(); ++i) {
-                const LeafT& leaf = leaves.leaf(i);
-                const auto* data = leaf.buffer().data();
-                MinMax mm;
-                for (openvdb::Index n = 0; n < LeafT::SIZE; ++n) {
-                    const double v = double(data[n]);
-                    if (!std::isfinite(v)) { bad[i] = std::int64_t(n); break; }
-                    mm.add(v);
-                }
-                leafMM[i] = mm;
-            }
-        });
-        for (std::size_t i = 0; i < bad.size(); ++i) {
-            if (bad[i] >= 0) {
-                const LeafT& leaf = leaves.leaf(i);
-                const double v = double(leaf.getValue(openvdb::Index(bad[i])));
-                throw Error(label, std::string("holds ") + (std::isnan(v) ? "NaN" : "an infinite value") + " at voxel " +
-                                       coordText(leaf.offsetToGlobalCoord(openvdb::Index(bad[i]))));
-            }
-        }
-        for (std::size_t i = 0; i < leafMM.size(); ++i) mCache.emplace(&leaves.leaf(i), leafMM[i]);
-
-        auto tile = [&](double v, const Coord& at) {
-            if (!std::isfinite(v))
-                throw Error(label, std::string("holds ") + (std::isnan(v) ? "NaN" : "an infinite value") + " in the tile at " + coordText(at));
+    // Min/max summaries of every leaf and internal node (for bounds()), the whole grid's range,
+    // and the box of the tiles that differ from the background (for the domain); refuses
+    // non-finite values. The lower internal nodes are summarised in parallel, one task each; the
+    // first bad value in tree order is reported, as a serial walk would.
+    void computeSummaries(const std::string& label) {
+        struct Node1Summary {
+            MinMax mm;
+            std::vector<std::pair<const LeafT*, MinMax>> leaves;
+            CoordBBox tiles; // tiles that differ from the background
+            bool badLeaf = false, badTile = false;
+            Coord badLeafAt, badTileAt;
+            double badLeafValue = 0, badTileValue = 0;
         };
         const RootT& root = mTree.root();
         const double bg = double(root.background());
+        std::vector<const Node1T*> lower;
+        for (auto it2 = root.cbeginChildOn(); it2; ++it2)
+            for (auto it1 = it2->cbeginChildOn(); it1; ++it1) lower.push_back(&*it1);
+        std::vector<Node1Summary> summaries(lower.size());
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lower.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t k = r.begin(); k < r.end(); ++k) {
+                const Node1T& n1 = *lower[k];
+                Node1Summary& sm = summaries[k];
+                for (openvdb::Index i1 = 0; i1 < Node1T::NUM_VALUES; ++i1) {
+                    if (n1.isChildMaskOn(i1)) {
+                        const LeafT& leaf = *n1.getTable()[i1].getChild();
+                        const auto* data = leaf.buffer().data();
+                        MinMax mm;
+                        for (openvdb::Index n = 0; n < LeafT::SIZE; ++n) {
+                            const double v = double(data[n]);
+                            if (!std::isfinite(v) && !sm.badLeaf) sm.badLeaf = true, sm.badLeafAt = leaf.offsetToGlobalCoord(n), sm.badLeafValue = v;
+                            mm.add(v);
+                        }
+                        sm.leaves.emplace_back(&leaf, mm);
+                        sm.mm.add(mm);
+                        continue;
+                    }
+                    const double v = double(n1.getTable()[i1].getValue());
+                    if (!std::isfinite(v) && !sm.badTile) sm.badTile = true, sm.badTileAt = n1.offsetToGlobalCoord(i1), sm.badTileValue = v;
+                    sm.mm.add(v);
+                    if (v != bg) {
+                        const Coord o = n1.offsetToGlobalCoord(i1);
+                        sm.tiles.expand(CoordBBox::createCube(o, int(LeafT::DIM)));
+                    }
+                }
+            }
+        });
+        auto refuse = [&](double v, const Coord& at, const char* where) {
+            throw Error(label, std::string("holds ") + (std::isnan(v) ? "NaN" : "an infinite value") + where + coordText(at));
+        };
+        for (const Node1Summary& sm : summaries)
+            if (sm.badLeaf) refuse(sm.badLeafValue, sm.badLeafAt, " at voxel ");
         if (!std::isfinite(bg)) throw Error(label, "has a NaN or infinite background value");
         mAll.add(bg);
+        auto tile = [&](double v, const Coord& at, int dim) {
+            if (!std::isfinite(v)) refuse(v, at, " in the tile at ");
+            if (v != bg) mTiles.expand(CoordBBox::createCube(at, dim));
+        };
+        std::size_t k = 0;
         for (auto it2 = root.cbeginChildOn(); it2; ++it2) {
             const Node2T& n2 = *it2;
             MinMax mm2;
             for (openvdb::Index i2 = 0; i2 < Node2T::NUM_VALUES; ++i2) {
                 if (n2.isChildMaskOn(i2)) {
-                    const Node1T& n1 = *n2.getTable()[i2].getChild();
-                    MinMax mm1;
-                    for (openvdb::Index i1 = 0; i1 < Node1T::NUM_VALUES; ++i1) {
-                        if (n1.isChildMaskOn(i1)) mm1.add(mCache.at(n1.getTable()[i1].getChild()));
-                        else {
-                            const double v = double(n1.getTable()[i1].getValue());
-                            tile(v, n1.offsetToGlobalCoord(i1));
-                            mm1.add(v);
-                        }
-                    }
-                    mCache.emplace(&n1, mm1);
-                    mm2.add(mm1);
+                    const Node1Summary& sm = summaries[k];
+                    if (sm.badTile) refuse(sm.badTileValue, sm.badTileAt, " in the tile at ");
+                    for (const auto& [leaf, mm] : sm.leaves) mCache.emplace(leaf, mm);
+                    mCache.emplace(lower[k], sm.mm);
+                    mm2.add(sm.mm);
+                    mTiles.expand(sm.tiles);
+                    ++k;
                 } else {
                     const double v = double(n2.getTable()[i2].getValue());
-                    tile(v, n2.offsetToGlobalCoord(i2));
+                    tile(v, n2.offsetToGlobalCoord(i2), int(Node1T::DIM));
                     mm2.add(v);
                 }
             }
@@ -432,7 +451,7 @@ private:
             mAll.add(mm2);
         }
         for (auto it = root.cbeginValueAll(); it; ++it) {
-            tile(double(*it), it.getCoord());
+            tile(double(*it), it.getCoord(), int(Node2T::DIM));
             mAll.add(double(*it));
         }
     }
@@ -440,15 +459,7 @@ private:
     void computeDomain(const std::string& label) {
         CoordBBox ib;
         mTree.evalLeafBoundingBox(ib);
-        const double bg = double(mTree.background());
-        typename TreeT::ValueAllCIter it = mTree.cbeginValueAll();
-        it.setMaxDepth(TreeT::ValueAllCIter::LEAF_DEPTH - 1); // tiles only
-        for (; it; ++it) {
-            if (double(*it) == bg) continue;
-            CoordBBox tb;
-            it.getBoundingBox(tb);
-            ib.expand(tb);
-        }
+        ib.expand(mTiles);
         if (ib.empty() || (mGrid->activeVoxelCount() == 0 && mAll.lo == mAll.hi))
             throw Error(label, "is empty (no active voxels or tiles)");
         ib.expand(1); // the trilinear support reaches one voxel beyond the stored data
@@ -513,6 +524,7 @@ private:
     Vec3d mOrigin;
     MinMax mAll;
     std::unordered_map<const void*, MinMax> mCache;
+    CoordBBox mTiles; // index box of the tiles that differ from the background
     CoordBBox mIndexDomain;
     Box3 mDomain;
 };
