@@ -115,25 +115,52 @@ std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint
     return repOf;
 }
 
-// Undirected edges at a welded vertex, with their direction: only such edges can have become
-// shared by more than two polygons (every polygon with one is a candidate). Sorted.
-std::vector<std::pair<std::uint64_t, int>> edgesAtWelds(const Loops& loops, const std::vector<std::uint8_t>& isRep) {
-    std::vector<std::vector<std::pair<std::uint64_t, int>>> parts(chunkCount(loops.count()));
-    forEachChunk(loops.count(), [&](std::size_t c, std::size_t b, std::size_t e) {
-        for (std::size_t l = b; l < e; ++l) {
+// Welded vertices where the mesh would stop being edge-manifold: two loop edges leaving v for
+// one vertex w, or two arriving from one, mean the edge {v, w} has more than two polygons or two
+// running the same way (with at most one each way it is fine). Only edges at a welded vertex
+// can have changed, and every loop through one is listed, so looking at the corners of the
+// welded vertices finds every such edge. Marks both ends that are welded vertices in `apart`
+// (by vertex); returns whether any was found. `slot` numbers the possible representatives.
+bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& isRep, const std::vector<std::uint32_t>& slot,
+                          std::size_t slots, std::vector<std::uint8_t>& apart) {
+    // The corners at each welded vertex, grouped by counting: (next vertex, previous vertex).
+    std::vector<std::uint32_t> first(slots + 1, 0);
+    for (std::uint32_t v : loops.indices)
+        if (isRep[v]) ++first[slot[v] + 1];
+    for (std::size_t s = 0; s < slots; ++s) first[s + 1] += first[s];
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> corners(first.back());
+    {
+        std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
+        for (std::size_t l = 0; l < loops.count(); ++l) {
             const std::uint32_t* p = loops.loop(l);
             const std::uint32_t n = loops.size(l);
-            for (std::uint32_t i = 0; i < n; ++i) {
-                const std::uint32_t a = p[i], z = p[i + 1 < n ? i + 1 : 0];
-                if (!isRep[a] && !isRep[z]) continue;
-                parts[c].emplace_back((std::uint64_t(std::min(a, z)) << 32) | std::max(a, z), a < z ? 1 : -1);
+            for (std::uint32_t i = 0; i < n; ++i)
+                if (isRep[p[i]]) corners[fill[slot[p[i]]]++] = {p[i + 1 < n ? i + 1 : 0], p[i > 0 ? i - 1 : n - 1]};
+        }
+    }
+    std::vector<std::uint8_t> bad(slots, 0);
+    std::vector<std::vector<std::uint32_t>> badEnds(chunkCount(slots)); // the w of each bad edge
+    forEachChunk(slots, [&](std::size_t c, std::size_t b, std::size_t e) {
+        std::vector<std::uint32_t> ends;
+        for (std::size_t s = b; s < e; ++s) {
+            for (int way = 0; way < 2; ++way) {
+                ends.clear();
+                for (std::uint32_t i = first[s]; i < first[s + 1]; ++i) ends.push_back(way ? corners[i].second : corners[i].first);
+                std::sort(ends.begin(), ends.end());
+                for (std::size_t i = 1; i < ends.size(); ++i)
+                    if (ends[i] == ends[i - 1]) bad[s] = 1, badEnds[c].push_back(ends[i]);
             }
         }
     });
-    std::vector<std::pair<std::uint64_t, int>> edges;
-    for (const auto& p : parts) edges.insert(edges.end(), p.begin(), p.end());
-    tbb::parallel_sort(edges.begin(), edges.end());
-    return edges;
+    bool any = false;
+    for (std::size_t s = 0; s < slots; ++s) any = any || bad[s];
+    if (!any) return false;
+    for (std::uint32_t v = 0; v < slot.size(); ++v)
+        if (slot[v] != kNone && bad[slot[v]]) apart[v] = 1;
+    for (const auto& ends : badEnds)
+        for (std::uint32_t w : ends)
+            if (isRep[w]) apart[w] = 1;
+    return true;
 }
 
 bool reversedLoops(const Loops& loops, std::size_t x, std::size_t y) {
@@ -284,6 +311,11 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
     for (std::uint32_t f = 0; f < touches.size(); ++f)
         if (touches[f]) candidateOf[f] = std::uint32_t(candidates.size()), candidates.push_back(f);
 
+    // The representatives, numbered (for grouping corners by welded vertex).
+    std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
+    std::size_t slots = 0;
+    for (std::uint32_t rep : repOf)
+        if (slot[rep] == kNone) slot[rep] = std::uint32_t(slots++);
     std::vector<std::uint32_t> remap(mesh.points.size());
     for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
     std::vector<std::uint8_t> isRep(mesh.points.size(), 0), apart(mesh.points.size(), 0); // apart: by representative
@@ -321,19 +353,7 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         std::vector<std::uint32_t> firstLoop(candidates.size() + 1, 0);
         for (std::size_t k = 0; k < candidates.size(); ++k) firstLoop[k + 1] = firstLoop[k] + loopsOf[k];
 
-        const auto edges = edgesAtWelds(loops, isRep);
-        bool bad = false;
-        for (std::size_t i = 0; i < edges.size();) {
-            std::size_t j = i;
-            int sum = 0;
-            while (j < edges.size() && edges[j].first == edges[i].first) sum += edges[j++].second;
-            if (j - i > 2 || (j - i == 2 && sum != 0)) {
-                for (const std::uint32_t v : {std::uint32_t(edges[i].first >> 32), std::uint32_t(edges[i].first)})
-                    if (isRep[v]) apart[v] = 1;
-                bad = true;
-            }
-            i = j;
-        }
+        const bool bad = markNonManifoldWelds(loops, isRep, slot, slots, apart);
         if (bad && attempt < 8) continue;
         if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
 

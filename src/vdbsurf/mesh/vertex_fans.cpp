@@ -117,39 +117,47 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
             corners[fill[s]++] = {b + k, mesh.indices[b + (k + n - 1) % n], mesh.indices[b + (k + 1) % n]};
         });
     }
-    std::vector<std::uint32_t> parent, fanOfRoot;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> byNeighbour; // (neighbour vertex, corner slot)
-    for (std::size_t s = 0; s < candidates.size(); ++s) {
-        const Corner* at = corners.data() + first[s];
-        const std::uint32_t count = first[s + 1] - first[s];
-        if (count < 2) continue;
-        // Corners sharing an edge at the vertex (a neighbour vertex) are in one fan.
-        parent.resize(count);
-        for (std::uint32_t i = 0; i < count; ++i) parent[i] = i;
-        auto find = [&](std::uint32_t x) {
-            while (parent[x] != x) x = parent[x] = parent[parent[x]];
-            return x;
-        };
-        byNeighbour.clear();
-        for (std::uint32_t i = 0; i < count; ++i) {
-            byNeighbour.emplace_back(at[i].prev, i);
-            byNeighbour.emplace_back(at[i].next, i);
-        }
-        std::sort(byNeighbour.begin(), byNeighbour.end());
-        for (std::size_t i = 1; i < byNeighbour.size(); ++i)
-            if (byNeighbour[i].first == byNeighbour[i - 1].first) {
-                const std::uint32_t a = find(byNeighbour[i].second), b = find(byNeighbour[i - 1].second);
-                if (a != b) parent[std::max(a, b)] = std::min(a, b); // a fan's root is its first corner
+    // Each corner's fan at its vertex (0: the fan of the vertex's first corner), per candidate
+    // in parallel (each writes only its own corners), then reported in order.
+    std::vector<std::uint32_t> fanOf(corners.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::vector<std::uint32_t> parent, fanOfRoot;
+        std::vector<std::pair<std::uint32_t, std::uint32_t>> byNeighbour; // (neighbour vertex, corner slot)
+        for (std::size_t s = r.begin(); s < r.end(); ++s) {
+            const Corner* at = corners.data() + first[s];
+            const std::uint32_t count = first[s + 1] - first[s];
+            if (count < 2) continue;
+            // Corners sharing an edge at the vertex (a neighbour vertex) are in one fan.
+            parent.resize(count);
+            for (std::uint32_t i = 0; i < count; ++i) parent[i] = i;
+            auto find = [&](std::uint32_t x) {
+                while (parent[x] != x) x = parent[x] = parent[parent[x]];
+                return x;
+            };
+            byNeighbour.clear();
+            for (std::uint32_t i = 0; i < count; ++i) {
+                byNeighbour.emplace_back(at[i].prev, i);
+                byNeighbour.emplace_back(at[i].next, i);
             }
-        fanOfRoot.assign(count, 0);
-        std::uint32_t fans = 0;
-        for (std::uint32_t i = 0; i < count; ++i) {
-            const std::uint32_t r = find(i);
-            if (r == 0) continue;
-            if (fanOfRoot[r] == 0) fanOfRoot[r] = ++fans;
-            extra(candidates[s], at[i].corner, fanOfRoot[r]);
+            std::sort(byNeighbour.begin(), byNeighbour.end());
+            for (std::size_t i = 1; i < byNeighbour.size(); ++i)
+                if (byNeighbour[i].first == byNeighbour[i - 1].first) {
+                    const std::uint32_t a = find(byNeighbour[i].second), b = find(byNeighbour[i - 1].second);
+                    if (a != b) parent[std::max(a, b)] = std::min(a, b); // a fan's root is its first corner
+                }
+            fanOfRoot.assign(count, 0);
+            std::uint32_t fans = 0;
+            for (std::uint32_t i = 0; i < count; ++i) {
+                const std::uint32_t root = find(i);
+                if (root == 0) continue;
+                if (fanOfRoot[root] == 0) fanOfRoot[root] = ++fans;
+                fanOf[first[s] + i] = fanOfRoot[root];
+            }
         }
-    }
+    });
+    for (std::size_t s = 0; s < candidates.size(); ++s)
+        for (std::uint32_t i = first[s]; i < first[s + 1]; ++i)
+            if (fanOf[i] > 0) extra(candidates[s], corners[i].corner, fanOf[i]);
 }
 
 } // namespace
