@@ -27,6 +27,14 @@ openvdb::FloatGrid::Ptr noiseGrid(int n, double voxel, unsigned seed) {
     return g;
 }
 
+// The transform the rotated cases use: voxel 0.25, turned about z and then x.
+openvdb::math::Transform::Ptr rotatedTransform() {
+    auto xf = openvdb::math::Transform::createLinearTransform(0.25);
+    xf->postRotate(0.4, openvdb::math::Z_AXIS);
+    xf->postRotate(0.3, openvdb::math::X_AXIS);
+    return xf;
+}
+
 } // namespace
 
 TEST_CASE("values are the grid's at voxel centres and trilinear between them") {
@@ -45,9 +53,7 @@ TEST_CASE("grid bounds contain every sampled value, for aligned and rotated tran
     for (bool rotate : {false, true}) {
         auto g = noiseGrid(20, 0.25, 2);
         if (rotate) {
-            auto xf = openvdb::math::Transform::createLinearTransform(0.25);
-            xf->postRotate(0.4, openvdb::math::Z_AXIS);
-            xf->postRotate(0.3, openvdb::math::X_AXIS);
+            auto xf = rotatedTransform();
             xf->postTranslate(openvdb::Vec3d(0.1, -0.2, 0.3));
             g->setTransform(xf);
         }
@@ -78,12 +84,7 @@ TEST_CASE("grid bounds contain every sampled value, for aligned and rotated tran
 TEST_CASE("valueAndGradient returns value() and gradient() bit for bit, aligned and rotated") {
     for (bool rotate : {false, true}) {
         auto g = noiseGrid(12, 0.25, 3);
-        if (rotate) {
-            auto xf = openvdb::math::Transform::createLinearTransform(0.25);
-            xf->postRotate(0.4, openvdb::math::Z_AXIS);
-            xf->postRotate(0.3, openvdb::math::X_AXIS);
-            g->setTransform(xf);
-        }
+        if (rotate) g->setTransform(rotatedTransform());
         GridField f(g, "noise");
         std::mt19937 rng(7);
         std::uniform_real_distribution<double> u(-1.6, 1.6);

@@ -17,8 +17,8 @@ void activateAround(Lattice& lattice, openvdb::MaskTree& around, const openvdb::
 
 void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation) {
     openvdb::MaskTree around(false);
+    // Nodes placed on features have offsets too.
     for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) activateAround(lattice, around, it.getCoord());
-    for (auto it = deformation.onSurface->cbeginValueOn(); it; ++it) activateAround(lattice, around, it.getCoord());
     lattice.cells->topologyUnion(around);
 }
 

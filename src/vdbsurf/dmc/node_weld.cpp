@@ -120,7 +120,7 @@ std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint
 // running the same way (with at most one each way it is fine). Only edges at a welded vertex
 // can have changed, and every loop through one is listed, so looking at the corners of the
 // welded vertices finds every such edge. Marks both ends that are welded vertices in `apart`
-// (by vertex); returns whether any was found. `slot` numbers the possible representatives.
+// (by slot, the numbering of the possible representatives); returns whether any was found.
 bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& isRep, const std::vector<std::uint32_t>& slot,
                           std::size_t slots, std::vector<std::uint8_t>& apart) {
     // The corners at each welded vertex, grouped by counting: (next vertex, previous vertex).
@@ -153,14 +153,12 @@ bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& i
         }
     });
     bool any = false;
-    for (std::size_t s = 0; s < slots; ++s) any = any || bad[s];
-    if (!any) return false;
-    for (std::uint32_t v = 0; v < slot.size(); ++v)
-        if (slot[v] != kNone && bad[slot[v]]) apart[v] = 1;
+    for (std::size_t s = 0; s < slots; ++s)
+        if (bad[s]) apart[s] = 1, any = true;
     for (const auto& ends : badEnds)
         for (std::uint32_t w : ends)
-            if (isRep[w]) apart[w] = 1;
-    return true;
+            if (isRep[w]) apart[slot[w]] = 1;
+    return any;
 }
 
 bool reversedLoops(const Loops& loops, std::size_t x, std::size_t y) {
@@ -318,13 +316,13 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         if (slot[rep] == kNone) slot[rep] = std::uint32_t(slots++);
     std::vector<std::uint32_t> remap(mesh.points.size());
     for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
-    std::vector<std::uint8_t> isRep(mesh.points.size(), 0), apart(mesh.points.size(), 0); // apart: by representative
+    std::vector<std::uint8_t> isRep(mesh.points.size(), 0), apart(slots, 0); // apart: representatives kept apart, by slot
     for (int attempt = 0;; ++attempt) {
         for (std::size_t k = 0; k < atNode.size(); ++k) remap[atNode[k].first] = atNode[k].first, isRep[repOf[k]] = 0;
         std::uint64_t welded = 0;
         for (std::size_t k = 0; k < atNode.size(); ++k) {
             const std::uint32_t v = atNode[k].first, rep = repOf[k];
-            if (apart[rep] || rep == v) continue;
+            if (apart[slot[rep]] || rep == v) continue;
             remap[v] = rep;
             ++welded;
             isRep[rep] = 1;
