@@ -6,6 +6,7 @@
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/dmc/node_gradients.h"
 #include "vdbsurf/dmc/sharp_features.h"
 #include "vdbsurf/field/grid_field.h"
 #include "vdbsurf/lattice/lattice.h"
@@ -329,6 +330,63 @@ TEST_CASE("on a grid at its own voxel size, skipping cells whose corner gradient
         // resolution, are not: see the closing note of issue 4); the ball has no feature.
         if (shape == 1) CHECK(stats[0].nodesOnEdges >= 50);
         else CHECK(stats[0].nodesOnCorners + stats[0].nodesOnEdges == 0);
+    }
+}
+
+TEST_CASE("the corner-gradient edge test: a cone of half the edge angle rules out only cells with no wider pair") {
+    // SharpEdgeLimit decides, from squared products of raw gradients, whether two lie farther
+    // apart than the edge angle (pairWider) and whether one lies within half of it of a direction
+    // (inCone): all eight within that cone of their sum means no pair can be wider.
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1), scale(0.05, 20);
+    auto randomUnit = [&] {
+        for (;;) {
+            const Vec3d v(u(rng), u(rng), u(rng));
+            if (dot(v, v) > 1e-4 && dot(v, v) <= 1) return normalized(v);
+        }
+    };
+    auto angle = [](const Vec3d& a, const Vec3d& b) { return std::acos(std::clamp(dot(normalized(a), normalized(b)), -1.0, 1.0)); };
+    for (double edgeCosine : {0.99, 0.9, 0.5, 0.0, -0.6}) {
+        INFO("edge cosine " << edgeCosine);
+        const SharpEdgeLimit limit(edgeCosine);
+        const double edgeAngle = std::acos(edgeCosine + 1e-5);
+        int inConeSets = 0, pairsChecked = 0;
+        for (int set = 0; set < 4000; ++set) {
+            // Eight gradients of random lengths around one direction, spread up to 1.2 edge angles
+            // (the last quarter of the sets within a quarter of it: their sum is within a quarter
+            // too, so the cone must take them).
+            const bool tight = set >= 3000;
+            const Vec3d axis = randomUnit();
+            const double spread = tight ? 0.24 * edgeAngle : 1.2 * edgeAngle * std::fabs(u(rng));
+            Vec3d g[8], sum;
+            double gg[8];
+            for (int c = 0; c < 8; ++c) {
+                Vec3d d;
+                do d = axis + randomUnit() * std::tan(std::min(spread, 1.5)) * std::fabs(u(rng));
+                while (angle(d, axis) > spread);
+                g[c] = normalized(d) * scale(rng);
+                gg[c] = dot(g[c], g[c]);
+                sum += g[c];
+            }
+            double widest = 0;
+            for (int a = 0; a < 8; ++a)
+                for (int b = a + 1; b < 8; ++b) {
+                    const double cosine = dot(normalized(g[a]), normalized(g[b]));
+                    widest = std::max(widest, angle(g[a], g[b]));
+                    if (std::fabs(cosine - (edgeCosine + 1e-5)) < 1e-9) continue;
+                    ++pairsChecked;
+                    REQUIRE(limit.pairWider(g[a], gg[a], g[b], gg[b]) == (cosine < edgeCosine + 1e-5));
+                }
+            bool inCone = true;
+            for (int c = 0; c < 8; ++c) inCone = inCone && limit.inCone(g[c], gg[c], sum, dot(sum, sum));
+            if (inCone) {
+                ++inConeSets;
+                REQUIRE(widest <= edgeAngle);
+            }
+            if (tight) REQUIRE(inCone);
+        }
+        CHECK(pairsChecked > 50000);
+        CHECK(inConeSets >= 1000);
     }
 }
 

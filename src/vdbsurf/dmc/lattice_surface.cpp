@@ -132,6 +132,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
     const bool tri = options.triangulate;
     const bool nodeGradients = options.normals && linear;
     const double outward = side == Inside::Below ? 1.0 : -1.0;
+    const SharpEdgeLimit edgeLimit(options.sharpEdgeCosine);
 
     const std::size_t leafCount = leafManager.leafCount();
     if (!only) {
@@ -178,8 +179,14 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
             w.vertexPrefix.resize(cells);
             if (options.normals) w.sharpCandidate.assign(cells, 1);
 
-            sampleLeafNodes(field, frame, leaf, needed, vals);
-            if (nodeGradients) gradients.sample(field, frame, w.origin);
+            if (nodeGradients) {
+                // The gradients' sample holds the leaf's node values too.
+                gradients.sample(field, frame, w.origin);
+                markLeafNodes(leaf, needed);
+                gradients.leafValues(vals);
+            } else {
+                sampleLeafNodes(field, frame, leaf, needed, vals);
+            }
             moved.fill(0);
             // Most leaves hold no moved node: then the three probes per node below are skipped.
             if (deformation && (anyActiveNode(*offsetAcc, w.origin) || anyActiveNode(*surfaceAcc, w.origin))) {
@@ -272,7 +279,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 if (nodeGradients) {
                     bool anyMoved = false;
                     for (int c = 0; c < 8 && !anyMoved; ++c) anyMoved = moved[std::size_t(leafCornerIndex(it.pos(), c))] != 0;
-                    if (!anyMoved) w.sharpCandidate[rank] = gradients.mayHoldSharpEdge(x, y, z, options.sharpEdgeCosine);
+                    if (!anyMoved) w.sharpCandidate[rank] = gradients.mayHoldSharpEdge(x, y, z, edgeLimit);
                 }
                 for (int l = 0; l < cc.loopCount; ++l) {
                     if (cc.needsCentre & (1u << l)) {

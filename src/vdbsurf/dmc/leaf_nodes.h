@@ -21,12 +21,17 @@ inline int leafCornerIndex(openvdb::Index offset, int c) {
     return leafNodeIndex(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1));
 }
 
-// Values at the corners of the leaf's active cells (`needed` marks them; other entries unset).
-inline void sampleLeafNodes(const Field& field, const LatticeFrame& frame, const openvdb::MaskTree::LeafNodeType& leaf,
-                            std::array<std::uint8_t, kLeafNodeCount>& needed, std::array<double, kLeafNodeCount>& values) {
+// Marks the corners of the leaf's active cells.
+inline void markLeafNodes(const openvdb::MaskTree::LeafNodeType& leaf, std::array<std::uint8_t, kLeafNodeCount>& needed) {
     needed.fill(0);
     for (auto it = leaf.cbeginValueOn(); it; ++it)
         for (int c = 0; c < 8; ++c) needed[std::size_t(leafCornerIndex(it.pos(), c))] = 1;
+}
+
+// Values at the corners of the leaf's active cells (`needed` marks them; other entries unset).
+inline void sampleLeafNodes(const Field& field, const LatticeFrame& frame, const openvdb::MaskTree::LeafNodeType& leaf,
+                            std::array<std::uint8_t, kLeafNodeCount>& needed, std::array<double, kLeafNodeCount>& values) {
+    markLeafNodes(leaf, needed);
     const openvdb::Coord o = leaf.origin();
     field.sampleNodes(frame, {o.x(), o.y(), o.z()}, {kLeafNodesPerSide, kLeafNodesPerSide, kLeafNodesPerSide}, needed.data(),
                       values.data());

@@ -6,25 +6,60 @@
 //
 // They also tell which cells cannot hold a sharp edge: every crossing normal in a cell is a
 // positive combination of two of its corner gradients, and the widest angle within a spherical
-// convex hull (in a hemisphere) is between two of its generators; so when the corners' unit
-// gradients all lie within the edge cosine of each other, no two crossing normals can fall below
-// it, and the sharp-feature pass skips the cell without gathering its crossings.
+// convex hull (in a hemisphere) is between two of its generators; so when the corners'
+// gradients all lie within the edge angle of each other, no two crossing normals can, and the
+// sharp-feature pass skips the cell without gathering its crossings. Most cells of a smooth
+// surface are ruled out by 8 products instead of 28: when every corner gradient lies within half
+// the edge angle of one direction (their sum), no two lie farther apart than the angle. Both
+// tests compare squared products, so they need no square root and no unit vectors.
 #pragma once
 #include "vdbsurf/dmc/leaf_nodes.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
 
 namespace vdbsurf {
 
+// The edge cosine of the sharp-feature pass as the corner test uses it.
+class SharpEdgeLimit {
+public:
+    explicit SharpEdgeLimit(double edgeCosine)
+        // A small margin keeps the test on the safe side of the normals' float rounding.
+        : mPair(edgeCosine + 1e-5),
+          // Within β of one direction, two vectors are within 2β of each other: β = half the
+          // angle whose cosine is the pair limit (none when the limit leaves no angle at all).
+          mCone(mPair >= 1 ? 2.0 : std::cos(0.5 * std::acos(std::max(-1.0, mPair))) + 1e-5) {}
+
+    // Is the angle between a and b (squared lengths aa, bb) wider than the edge angle?
+    bool pairWider(const Vec3d& a, double aa, const Vec3d& b, double bb) const {
+        const double d = dot(a, b), bound = mPair * mPair * aa * bb;
+        return mPair >= 0 ? d < 0 || d * d < bound : d < 0 && d * d > bound;
+    }
+    // Is v (squared length vv) within half the edge angle of m (squared length mm)?
+    bool inCone(const Vec3d& v, double vv, const Vec3d& m, double mm) const {
+        const double d = dot(v, m);
+        return mCone <= 1 && d > 0 && d * d >= mCone * mCone * vv * mm;
+    }
+
+private:
+    double mPair, mCone;
+};
+
 class NodeGradients {
 public:
     // Values of the leaf's nodes at `origin` and of the nodes beside them (one sampleNodes call:
     // a grid copies its leaf buffers).
     void sample(const Field& field, const LatticeFrame& frame, const openvdb::Coord& origin) {
-        mUnitState.fill(0);
         field.sampleNodes(frame, {origin.x() - 1, origin.y() - 1, origin.z() - 1}, {kSide, kSide, kSide}, nullptr, mValues.data());
+    }
+
+    // The values of the leaf's own nodes, as sampleLeafNodes gives them (the sample holds them).
+    void leafValues(std::array<double, kLeafNodeCount>& out) const {
+        for (int z = 0; z < kLeafNodesPerSide; ++z)
+            for (int y = 0; y < kLeafNodesPerSide; ++y)
+                std::copy_n(&mValues[index(0, y, z)], kLeafNodesPerSide, &out[std::size_t(leafNodeIndex(0, y, z))]);
     }
 
     // Gradient (index units) at a node of the leaf.
@@ -35,17 +70,25 @@ public:
                0.5;
     }
 
-    // May a sharp edge (two crossing normals with cosine below `edgeCosine`) pass through the
+    // May a sharp edge (two crossing normals with cosine below the limit's) pass through the
     // leaf's cell at (x, y, z)? Conservative: true also where a corner has no usable gradient.
-    bool mayHoldSharpEdge(int x, int y, int z, double edgeCosine) {
-        Vec3f u[8];
-        for (int c = 0; c < 8; ++c)
-            if (!unit(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1), u[c])) return true;
-        // Float unit vectors: a small margin keeps the test on the safe side of rounding.
-        const double limit = edgeCosine + 1e-5;
+    bool mayHoldSharpEdge(int x, int y, int z, const SharpEdgeLimit& limit) const {
+        Vec3d g[8], sum;
+        double gg[8];
+        for (int c = 0; c < 8; ++c) {
+            g[c] = at({x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)});
+            gg[c] = dot(g[c], g[c]);
+            // (Outside this range the squared products below could overflow or vanish.)
+            if (!(gg[c] > 1e-100 && gg[c] < 1e100)) return true;
+            sum += g[c];
+        }
+        const double ss = dot(sum, sum);
+        bool inCone = true;
+        for (int c = 0; c < 8 && inCone; ++c) inCone = limit.inCone(g[c], gg[c], sum, ss);
+        if (inCone) return false;
         for (int a = 0; a < 8; ++a)
             for (int b = a + 1; b < 8; ++b)
-                if (double(dot(u[a], u[b])) < limit) return true;
+                if (limit.pairWider(g[a], gg[a], g[b], gg[b])) return true;
         return false;
     }
 
@@ -56,22 +99,7 @@ private:
     // x, y, z from -1 to kLeafNodesPerSide.
     static std::size_t index(int x, int y, int z) { return std::size_t((x + 1) + kSide * ((y + 1) + kSide * (z + 1))); }
 
-    bool unit(int x, int y, int z, Vec3f& out) {
-        const std::size_t i = std::size_t(leafNodeIndex(x, y, z));
-        if (mUnitState[i] == 0) {
-            const Vec3d g = at({x, y, z});
-            const double len = std::sqrt(dot(g, g));
-            const bool ok = len > 0 && std::isfinite(len);
-            mUnitState[i] = ok ? 1 : 2;
-            if (ok) mUnit[i] = Vec3f(g / len);
-        }
-        out = mUnit[i];
-        return mUnitState[i] == 1;
-    }
-
     std::array<double, kCount> mValues;
-    std::array<Vec3f, kLeafNodeCount> mUnit;
-    std::array<std::uint8_t, kLeafNodeCount> mUnitState; // 0 not computed, 1 unit, 2 no gradient
 };
 
 } // namespace vdbsurf

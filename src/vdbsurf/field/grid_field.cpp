@@ -144,16 +144,14 @@ public:
             }
         }
         Acc acc(mTree);
-        ValueT block[3][3][3];
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-                for (int k = 0; k < 3; ++k) block[i][j][k] = acc.getValue(base.offsetBy(i, j, k));
+        ValueT block[27]; // x fastest, as sampleBlock writes it
+        sampleBlock(acc, base, {3, 3, 3}, block);
         auto sample = [&](int s) {
             const Coord d = corner[s] - base;
             ValueT data[2][2][2];
             for (int i = 0; i < 2; ++i)
                 for (int j = 0; j < 2; ++j)
-                    for (int k = 0; k < 2; ++k) data[i][j][k] = block[d.x() + i][d.y() + j][d.z() + k];
+                    for (int k = 0; k < 2; ++k) data[i][j][k] = block[(d.z() + k) * 9 + (d.y() + j) * 3 + d.x() + i];
             const openvdb::Vec3d uvw = samples[s] - openvdb::Vec3d(corner[s].x(), corner[s].y(), corner[s].z());
             return double(openvdb::tools::BoxSampler::trilinearInterpolation(data, uvw));
         };
@@ -340,11 +338,10 @@ private:
         return Coord(c(v.x()), c(v.y()), c(v.z()));
     }
 
-    // Block of 9^3 voxels starting at a leaf origin: 8^3 from that leaf, the +1 faces from up to
-    // seven neighbours, read straight from leaf buffers.
     // Every voxel of the box [base, base + dims), x fastest, leaf by leaf: one probe per leaf the
     // box touches and direct reads of its buffer, instead of an accessor lookup per voxel.
-    void sampleBlock(Acc& acc, const Coord& base, const Vec3i& dims, double* out) const {
+    template <typename OutT>
+    void sampleBlock(Acc& acc, const Coord& base, const Vec3i& dims, OutT* out) const {
         const Coord end(base.x() + dims.x, base.y() + dims.y, base.z() + dims.z);
         for (int cz = base.z() & ~7; cz < end.z(); cz += 8)
             for (int cy = base.y() & ~7; cy < end.y(); cy += 8)
@@ -352,7 +349,7 @@ private:
                     const int x0 = std::max(cx, base.x()), x1 = std::min(cx + 8, end.x());
                     const int y0 = std::max(cy, base.y()), y1 = std::min(cy + 8, end.y());
                     const int z0 = std::max(cz, base.z()), z1 = std::min(cz + 8, end.z());
-                    auto at = [&](int x, int y, int z) -> double& {
+                    auto at = [&](int x, int y, int z) -> OutT& {
                         return out[(std::size_t(z - base.z()) * std::size_t(dims.y) + std::size_t(y - base.y())) * std::size_t(dims.x) +
                                    std::size_t(x - base.x())];
                     };
@@ -360,9 +357,9 @@ private:
                         const auto* data = leaf->buffer().data();
                         for (int z = z0; z < z1; ++z)
                             for (int y = y0; y < y1; ++y)
-                                for (int x = x0; x < x1; ++x) at(x, y, z) = double(data[((x & 7) << 6) | ((y & 7) << 3) | (z & 7)]);
+                                for (int x = x0; x < x1; ++x) at(x, y, z) = OutT(data[((x & 7) << 6) | ((y & 7) << 3) | (z & 7)]);
                     } else {
-                        const double v = double(acc.getValue(Coord(cx, cy, cz)));
+                        const OutT v = OutT(acc.getValue(Coord(cx, cy, cz)));
                         for (int z = z0; z < z1; ++z)
                             for (int y = y0; y < y1; ++y)
                                 for (int x = x0; x < x1; ++x) at(x, y, z) = v;
