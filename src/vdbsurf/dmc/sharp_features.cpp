@@ -96,6 +96,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     struct Local {
         std::vector<Proposal> proposals;
         std::uint64_t edgeCells = 0, cornerCells = 0, rejected = 0;
+        Vec3d c[12], n[12]; // one cell's crossings and normals (here: not cleared for every cell)
     };
     tbb::enumerable_thread_specific<Local> locals;
     auto within = [&](const Vec3d& p, double cells) {
@@ -126,7 +127,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // mesher sets it to options.edgeThreshold) are skipped without gathering their crossings.
     surface.forEachSurfaceCell([&](const CellCrossings& cc) {
         Local& local = locals.local();
-        Vec3d c[12], n[12];
+        Vec3d* c = local.c;
+        Vec3d* n = local.n;
         int count = 0;
         const CubeCase& cube = cubeCase(cc.config);
         for (int e = 0; e < 12; ++e) {
@@ -142,7 +144,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         for (int i = 0; i < count; ++i)
             for (int j = i + 1; j < count; ++j) {
                 const double d = dot(n[i], n[j]);
-                if (d < theta && length(cross(n[i], n[j])) >= kMinSine) theta = d, a = i, b = j;
+                if (d < theta) {
+                    const Vec3d x = cross(n[i], n[j]);
+                    if (dot(x, x) >= kMinSine * kMinSine) theta = d, a = i, b = j;
+                }
                 twoSheets = twoSheets || d <= -kOppositeSheets;
             }
         if (a < 0) return;
