@@ -169,6 +169,30 @@ TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide ar
     CHECK(shellsApart >= shells - 1);
 }
 
+TEST_CASE("rods about a cell across, at random orientations, come out in one piece with sharp features on") {
+    // Their normals turn as fast as at an edge and two tangent planes meet just outside the
+    // surface: a feature node placed there would carry the rod's whole cross-section and the
+    // weld would cut the rod in two (the solid-behind probe must reach past such a rod).
+    std::mt19937 rng(424242);
+    std::uniform_real_distribution<double> jitter(-0.5 * kH, 0.5 * kH);
+    int pieces1 = 0, rods = 0;
+    for (double width : {1.0 * kH, 1.25 * kH}) {
+        for (int trial = 0; trial < 8; ++trial) {
+            const Vec3d n = randomUnit(rng), c(jitter(rng), jitter(rng), jitter(rng));
+            const std::string axial = dotWith(n, c);
+            const std::string f = "max(sqrt(max(" + radius2(c) + "-" + axial + "^2, 0))-" + num(width / 2) + ", sqrt(" + radius2(c) + ")-0.7)";
+            const Mesh m = meshFormula(f, kBox, kH);
+            INFO("rod of width " << width / kH << " H: " << f);
+            requireClosed(m);
+            CHECK(countComponents(m) == 1);
+            pieces1 += countComponents(m) == 1;
+            ++rods;
+        }
+    }
+    INFO(pieces1 << " of " << rods << " rods in one piece");
+    CHECK(pieces1 == rods);
+}
+
 TEST_CASE("a crack thinner than a cell inside a solid comes out (concave thin part)") {
     std::mt19937 rng(7);
     for (double width : {0.2 * kH, 0.3 * kH}) {
