@@ -17,6 +17,7 @@
 #include <chrono>
 #include <cmath>
 #include <optional>
+#include <tuple>
 
 namespace vdbsurf {
 
@@ -265,6 +266,48 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                               LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samplesOut,
                               std::vector<Vec3i>* movedOut) {
     const LatticeFrame& frame = lattice.frame;
+    // A point for node n on the segment a-b (which lies in a thin part): the middle of the
+    // stretch inside n's Ω (kept a hair inside), or, where the segment only grazes Ω (a part
+    // running along the edge where four Ω meet), the point of Ω nearest to it, if that is within
+    // half a search step. Returned as an offset from n that stays inside Ω after rounding to float.
+    const double nudge = frame.h * 1e-4, reach = frame.h / (2.0 * options.steps);
+    auto segmentInOmega = [&](const Coord& n, const Vec3d& a, const Vec3d& b) -> std::optional<Vec3f> {
+        const Vec3d centre = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())), d = b - a;
+        const double half = frame.h / 2 - nudge;
+        auto clampToOmega = [&](const Vec3d& q) {
+            Vec3d c;
+            for (int k = 0; k < 3; ++k) c[k] = std::clamp(q[k], centre[k] - half, centre[k] + half);
+            return c;
+        };
+        double t0 = 0, t1 = 1;
+        for (int k = 0; k < 3 && t0 <= t1; ++k) {
+            const double lo = centre[k] - half, hi = centre[k] + half;
+            if (d[k] == 0) {
+                if (a[k] < lo || a[k] > hi) t0 = 1, t1 = 0;
+                continue;
+            }
+            double ta = (lo - a[k]) / d[k], tb = (hi - a[k]) / d[k];
+            if (ta > tb) std::swap(ta, tb);
+            t0 = std::max(t0, ta);
+            t1 = std::min(t1, tb);
+        }
+        Vec3d q;
+        if (t0 <= t1) {
+            q = clampToOmega(a + d * (0.5 * (t0 + t1)));
+        } else {
+            double best = INFINITY;
+            for (int i = 0; i <= 32; ++i) {
+                const Vec3d s = a + d * (i / 32.0), c = clampToOmega(s);
+                const double dist = length(c - s);
+                if (dist < best) best = dist, q = c;
+            }
+            if (!(best <= reach)) return std::nullopt;
+        }
+        const Vec3f off(q - centre);
+        for (int k = 0; k < 3; ++k)
+            if (!(std::fabs(double(off[k])) < frame.h / 2)) return std::nullopt;
+        return off;
+    };
     const double iso = options.iso;
     const Inside side = field.inside();
     const OmegaSearch searcher(field, lattice, iso, options.steps);
@@ -320,9 +363,16 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     return true;
                 };
                 // Try the nodes between (offsets from p); the one that lands nearest the middle moves.
-                auto bridge = [&](const std::vector<Vec3i>& between, const Vec3d& middle) {
+                // With `to` (the other node of a diagonal the part joins), a node whose Ω the
+                // samples miss (the part only clips a corner or runs along an edge of it) may move
+                // onto the joining segment where it meets its Ω, if that point is in the part.
+                auto bridge = [&](const std::vector<Vec3i>& between, const Vec3d& middle, const Vec3d* to) {
                     std::optional<Bridge> best;
                     double bestDistance = INFINITY;
+                    auto consider = [&](const Coord& n, const Vec3f& off) {
+                        const double dist = length(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off) - middle);
+                        if (dist < bestDistance) bestDistance = dist, best = Bridge{n, off};
+                    };
                     for (const Vec3i& b : between) {
                         bool moved = false;
                         position(b.x, b.y, b.z, moved);
@@ -331,11 +381,20 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                         for (int z = -1; z <= 1; ++z)
                             for (int y = -1; y <= 1; ++y)
                                 for (int x = -1; x <= 1; ++x) around[local3(x, y, z)] = rest(b.x + x, b.y + y, b.z + z);
-                        const std::optional<Vec3f> off = searcher.search(n, around, false, cells, evaluated, found);
-                        if (!off) continue;
-                        const Vec3d target = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*off);
-                        const double dist = length(target - middle);
-                        if (dist < bestDistance) bestDistance = dist, best = Bridge{n, *off};
+                        if (const std::optional<Vec3f> off = searcher.search(n, around, false, cells, evaluated, found)) consider(n, *off);
+                    }
+                    for (std::size_t i = 0; i < between.size() && !best && to; ++i) {
+                        const Vec3i& b = between[i];
+                        bool moved = false;
+                        position(b.x, b.y, b.z, moved);
+                        if (moved) continue;
+                        const Coord n = p.offsetBy(b.x, b.y, b.z);
+                        if (const std::optional<Vec3f> off = segmentInOmega(n, pPos, *to)) {
+                            ++evaluated;
+                            const bool restInside = isInside(rest(b.x, b.y, b.z), iso, side);
+                            const Vec3d at = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*off);
+                            if (searcher.otherSide(restInside, field.value(at))) consider(n, *off);
+                        }
                     }
                     if (best) proposals[fi].push_back(*best);
                 };
@@ -352,7 +411,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                         for (int k = 0; k < 6; ++k) {
                             Vec3i e;
                             e[std::size_t(k / 2)] = k % 2 ? 1 : -1;
-                            bridge({e}, pPos);
+                            bridge({e}, pPos, nullptr);
                         }
                 }
                 // Face diagonals: inside nodes only (outside ones are joined by marching cubes).
@@ -369,7 +428,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                                     bool moved = false;
                                     const Vec3d qPos = position(q.x, q.y, q.z, moved);
                                     if (!joined(qPos)) continue;
-                                    bridge({ea, eb}, (pPos + qPos) * 0.5);
+                                    bridge({ea, eb}, (pPos + qPos) * 0.5, &qPos);
                                 }
                 // Cell diagonals, either side.
                 for (int d = 0; d < 8; ++d) {
@@ -387,7 +446,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     const Vec3d qPos = position(q.x, q.y, q.z, moved);
                     if (!joined(qPos)) continue;
                     // Nodes next to p first: after one moves, a face diagonal remains and is bridged next round.
-                    bridge({Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)}, (pPos + qPos) * 0.5);
+                    bridge({Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)}, (pPos + qPos) * 0.5, &qPos);
                 }
             }
             bridgeSamples.local() += evaluated;
@@ -395,10 +454,14 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         if (options.cancel) options.cancel->check();
         std::vector<Bridge> all;
         for (auto& v : proposals) all.insert(all.end(), v.begin(), v.end());
-        std::sort(all.begin(), all.end(), [](const Bridge& x, const Bridge& y) { return x.node < y.node; });
+        // A node's Ω search gives one offset whoever asks; segment points depend on the asker:
+        // the smallest offset wins (any order-free rule would do).
+        std::sort(all.begin(), all.end(), [](const Bridge& x, const Bridge& y) {
+            return std::tie(x.node, x.offset.x, x.offset.y, x.offset.z) < std::tie(y.node, y.offset.x, y.offset.y, y.offset.z);
+        });
         frontier.clear();
         for (std::size_t i = 0; i < all.size(); ++i) {
-            if (i > 0 && all[i].node == all[i - 1].node) continue; // one node, one search: the same offset
+            if (i > 0 && all[i].node == all[i - 1].node) continue;
             if (acc.isValueOn(all[i].node)) continue;
             acc.setValue(all[i].node, openvdb::Vec3f(all[i].offset.x, all[i].offset.y, all[i].offset.z));
             frontier.push_back(all[i].node);
