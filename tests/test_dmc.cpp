@@ -99,6 +99,30 @@ Rotation eulerRotation(double ax, double ay, double az) {
 const Box3 kBox{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
 constexpr double kH = 0.1;
 
+// A rod (cylinder of diameter `width`) through c along n, capped by a sphere of radius 0.7.
+std::string rodFormula(const Vec3d& n, const Vec3d& c, double width) {
+    return "max(sqrt(max(" + radius2(c) + "-" + dotWith(n, c) + "^2, 0))-" + num(width / 2) + ", sqrt(" + radius2(c) + ")-0.7)";
+}
+
+// Of `count` rods at random orientations through random points of the centre cell, how many DMC
+// meshes closed and in one piece.
+int randomRodsInOnePiece(unsigned seed, double width, int count) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> jitter(-0.5 * kH, 0.5 * kH);
+    int whole = 0;
+    for (int trial = 0; trial < count; ++trial) {
+        const Vec3d n = randomUnit(rng), c(jitter(rng), jitter(rng), jitter(rng));
+        const std::string f = rodFormula(n, c, width);
+        const Mesh m = meshFormula(f, kBox, kH);
+        INFO("rod of width " << width / kH << " H: " << f);
+        requireClosed(m);
+        const std::size_t pieces = countComponents(m);
+        CHECK(pieces == 1);
+        whole += pieces == 1;
+    }
+    return whole;
+}
+
 } // namespace
 
 TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide are kept, closed, in one piece") {
@@ -128,9 +152,7 @@ TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide ar
             // A rod (cylinder of diameter `width`) along n, capped by a sphere.
             truth.clear();
             {
-                const std::string axial = dotWith(n, c);
-                const std::string f = "max(sqrt(max(" + radius2(c) + "-" + axial + "^2, 0))-" + num(width / 2) + ", sqrt(" + radius2(c) +
-                                      ")-" + num(R) + ")";
+                const std::string f = rodFormula(n, c, width);
                 for (int i = 0; i < 400; ++i) {
                     const double t = -0.9 * R + 1.8 * R * i / 399.0, phi = i * 2.39996;
                     truth.push_back(c + n * t + (a * std::cos(phi) + b * std::sin(phi)) * (width / 2));
@@ -172,45 +194,15 @@ TEST_CASE("rods a fifth of a cell across, at random orientations, come out in on
     // often meet across a face or cell diagonal where the rod runs along the edge between their
     // Ω (or clips a corner of the Ω between): the node between moves onto the segment joining
     // them. (Without that, 12 of 60 such rods broke.)
-    std::mt19937 rng(5150);
-    std::uniform_real_distribution<double> jitter(-0.5 * kH, 0.5 * kH);
-    int pieces1 = 0, rods = 0;
-    for (int trial = 0; trial < 24; ++trial) {
-        const Vec3d n = randomUnit(rng), c(jitter(rng), jitter(rng), jitter(rng));
-        const std::string f = "max(sqrt(max(" + radius2(c) + "-" + dotWith(n, c) + "^2, 0))-" + num(0.1 * kH) + ", sqrt(" + radius2(c) + ")-0.7)";
-        const Mesh m = meshFormula(f, kBox, kH);
-        INFO("rod of width 0.2 H: " << f);
-        requireClosed(m);
-        CHECK(countComponents(m) == 1);
-        pieces1 += countComponents(m) == 1;
-        ++rods;
-    }
-    INFO(pieces1 << " of " << rods << " rods in one piece");
-    CHECK(pieces1 == rods);
+    CHECK(randomRodsInOnePiece(5150, 0.2 * kH, 24) == 24);
 }
 
 TEST_CASE("rods about a cell across, at random orientations, come out in one piece with sharp features on") {
     // Their normals turn as fast as at an edge and two tangent planes meet just outside the
     // surface: a feature node placed there would carry the rod's whole cross-section and the
     // weld would cut the rod in two (the solid-behind probe must reach past such a rod).
-    std::mt19937 rng(424242);
-    std::uniform_real_distribution<double> jitter(-0.5 * kH, 0.5 * kH);
-    int pieces1 = 0, rods = 0;
-    for (double width : {1.0 * kH, 1.25 * kH}) {
-        for (int trial = 0; trial < 8; ++trial) {
-            const Vec3d n = randomUnit(rng), c(jitter(rng), jitter(rng), jitter(rng));
-            const std::string axial = dotWith(n, c);
-            const std::string f = "max(sqrt(max(" + radius2(c) + "-" + axial + "^2, 0))-" + num(width / 2) + ", sqrt(" + radius2(c) + ")-0.7)";
-            const Mesh m = meshFormula(f, kBox, kH);
-            INFO("rod of width " << width / kH << " H: " << f);
-            requireClosed(m);
-            CHECK(countComponents(m) == 1);
-            pieces1 += countComponents(m) == 1;
-            ++rods;
-        }
-    }
-    INFO(pieces1 << " of " << rods << " rods in one piece");
-    CHECK(pieces1 == rods);
+    CHECK(randomRodsInOnePiece(424242, 1.0 * kH, 8) == 8);
+    CHECK(randomRodsInOnePiece(424243, 1.25 * kH, 8) == 8);
 }
 
 TEST_CASE("a crack thinner than a cell inside a solid comes out (concave thin part)") {
