@@ -197,12 +197,28 @@ TEST_CASE("rods a fifth of a cell across, at random orientations, come out in on
     CHECK(randomRodsInOnePiece(5150, 0.2 * kH, 24) == 24);
 }
 
-TEST_CASE("rods about a cell across, at random orientations, come out in one piece with sharp features on") {
+TEST_CASE("a rod through a lattice face whose corners all lie outside it stays in one piece") {
+    // This rod (found among random ones) passes from a cell with one inside corner to the next
+    // cell through the interior of their shared face, touching none of its edges or diagonals:
+    // the two inside nodes are two steps apart and marching cubes alone cuts the rod there. One
+    // of the face's corners moves into it (bridging, "pierced faces").
+    const std::string f = rodFormula(normalized(Vec3d(-0.402611, 0.857697, 0.319783)), Vec3d(-0.021874, 0.017538, 0.002351), 0.3 * kH);
+    const Mesh m = meshFormula(f, kBox, kH);
+    requireClosed(m);
+    CHECK(countComponents(m) == 1);
+    // And random rods of that width and a little wider stay whole too.
+    CHECK(randomRodsInOnePiece(31337, 0.3 * kH, 12) == 12);
+    CHECK(randomRodsInOnePiece(31338, 0.5 * kH, 12) == 12);
+}
+
+TEST_CASE("rods one to two cells across, at random orientations, come out in one piece with sharp features on") {
     // Their normals turn as fast as at an edge and two tangent planes meet just outside the
     // surface: a feature node placed there would carry the rod's whole cross-section and the
     // weld would cut the rod in two (the solid-behind probe must reach past such a rod).
     CHECK(randomRodsInOnePiece(424242, 1.0 * kH, 8) == 8);
     CHECK(randomRodsInOnePiece(424243, 1.25 * kH, 8) == 8);
+    CHECK(randomRodsInOnePiece(424244, 1.5 * kH, 8) == 8);
+    CHECK(randomRodsInOnePiece(424245, 2.0 * kH, 8) == 8);
 }
 
 TEST_CASE("a crack thinner than a cell inside a solid comes out (concave thin part)") {

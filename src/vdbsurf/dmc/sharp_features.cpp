@@ -30,9 +30,9 @@ constexpr double kMinSine = 0.25;
 // cell is not enough: on a round rod about a cell across, two tangent planes meet a little
 // outside the surface, a probe one cell in lands just short of the far side, and the node
 // placed there carries the rod's whole cross-section (welded to a point, the rod comes apart:
-// 5 of 10 random rods of diameter H did). 1.5 cells keeps those; solids with real edges (the
-// cube, the armadillo) lose none.
-constexpr double kMinThickness = 1.5;
+// 5 of 10 random rods of diameter H did; at 1.5 cells, about 1 in 40 rods 1.5 H across). Two
+// cells keep rods up to 2 H whole; the cube file loses no feature node, the armadillo 2 of 3970.
+constexpr double kMinThickness = 2.0;
 // Two crossing normals of one cell closer to opposite than this (cosine) are the two sides of a
 // thin part (a rod, a plate) inside the cell.
 constexpr double kOppositeSheets = 0.9;
@@ -118,7 +118,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return true;
     };
 
-    // An edge or corner belongs to a solid thicker than a cell and a half: that far in along the
+    // An edge or corner belongs to a solid thicker than two cells: that far in along the
     // mean of its faces' outward normals is still inside (convex and concave alike).
     // Across a rod or plate thinner than that the normals turn as fast as at an edge, the
     // feature tests above pass, and a node placed there would pinch the part.

@@ -8,7 +8,7 @@
 // Rules the paper leaves open, chosen so that the result does not depend on thread order:
 // - normal pairs that are nearly opposite are two sheets of a thin part, not an edge, and a cell
 //   holding such a pair proposes nothing (the normals of a rod or plate turn as fast as at an
-//   edge); nor does a feature with less than 1.5 cells of solid behind it (along the mean of its
+//   edge); nor does a feature with less than 2 cells of solid behind it (along the mean of its
 //   faces' outward normals), which would pinch a thin part into beads or cut a rod in two;
 // - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
 //   the field and its gradient) exceeds a fifth of a cell, is rejected;

@@ -448,6 +448,51 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     // Nodes next to p first: after one moves, a face diagonal remains and is bridged next round.
                     bridge({Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)}, (pPos + qPos) * 0.5, &qPos);
                 }
+                // joined(), at steps finer than the thinnest part the search keeps: over two
+                // cells, six samples could step over a sheet of the other side.
+                auto joinedFinely = [&](const Vec3d& q) {
+                    const int n = int(std::ceil(length(q - pPos) / frame.h * (options.steps + 1)));
+                    for (int k = 1; k < n; ++k) {
+                        ++evaluated;
+                        const double v = field.value(pPos + (q - pPos) * (double(k) / n));
+                        if (pInside ? !isInside(v, iso, side) : !searcher.otherSide(true, v)) return false;
+                    }
+                    return true;
+                };
+                // Pierced faces, either side: p and a node q of the cell beyond a face whose
+                // corners all lie on the other side (q is two steps from p along the face's axis,
+                // at most one across). A part through that face alone joins two cells that
+                // marching cubes keeps apart: one of the face's corners moves into it.
+                for (int axis = 0; axis < 3; ++axis)
+                    for (int s = -1; s <= 1; s += 2)
+                        for (int du = -1; du <= 1; ++du)
+                            for (int dv = -1; dv <= 1; ++dv) {
+                                const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+                                Vec3i q;
+                                q[std::size_t(axis)] = 2 * s;
+                                q[std::size_t(u)] = du;
+                                q[std::size_t(v)] = dv;
+                                if (insideAt(q.x, q.y, q.z) != pInside) continue;
+                                // The face's corners: one step along the axis; across it, the
+                                // coordinates between p's and q's (where those agree, the faces on
+                                // both sides of the line they share).
+                                std::vector<Vec3i> corners;
+                                bool separated = true;
+                                for (int cu = du ? std::min(0, du) : -1; cu <= (du ? std::max(0, du) : 1) && separated; ++cu)
+                                    for (int cv = dv ? std::min(0, dv) : -1; cv <= (dv ? std::max(0, dv) : 1) && separated; ++cv) {
+                                        Vec3i c;
+                                        c[std::size_t(axis)] = s;
+                                        c[std::size_t(u)] = cu;
+                                        c[std::size_t(v)] = cv;
+                                        separated = insideAt(c.x, c.y, c.z) != pInside;
+                                        corners.push_back(c);
+                                    }
+                                if (!separated) continue;
+                                bool moved = false;
+                                const Vec3d qPos = position(q.x, q.y, q.z, moved);
+                                if (!joinedFinely(qPos)) continue;
+                                bridge(corners, (pPos + qPos) * 0.5, &qPos);
+                            }
             }
             bridgeSamples.local() += evaluated;
         });
