@@ -259,8 +259,9 @@ void replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidateOf
 }
 
 // Drops the points no polygon uses, keeping the order of the rest; returns old -> new (kNone
-// for dropped points).
-std::vector<std::uint32_t> dropUnusedPoints(Mesh& mesh) {
+// for dropped points). Leaves room for `spare` more points, so that adding them later does not
+// move the whole array (that cost more than the rest of the fan split).
+std::vector<std::uint32_t> dropUnusedPoints(Mesh& mesh, std::size_t spare) {
     const std::size_t n = mesh.points.size();
     std::unique_ptr<std::atomic<std::uint8_t>[]> used(new std::atomic<std::uint8_t>[n]);
     forEachChunk(n, [&](std::size_t, std::size_t b, std::size_t e) {
@@ -275,7 +276,9 @@ std::vector<std::uint32_t> dropUnusedPoints(Mesh& mesh) {
     });
     const std::vector<std::size_t> base = prefixSums(kept);
     std::vector<std::uint32_t> newId(n, kNone);
-    std::vector<Vec3f> points(base.back());
+    std::vector<Vec3f> points;
+    points.reserve(base.back() + spare);
+    points.resize(base.back());
     forEachChunk(n, [&](std::size_t c, std::size_t b, std::size_t e) {
         std::size_t next = base[c];
         for (std::size_t v = b; v < e; ++v)
@@ -361,7 +364,11 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         for (std::uint64_t c : collapsedIn) collapsed += c;
         std::vector<std::uint32_t> fromCandidates;
         replaceCandidates(mesh, candidateOf, firstLoop, loops, pillow, fromCandidates);
-        const std::vector<std::uint32_t> newId = dropUnusedPoints(mesh);
+        // A welded vertex where several fans meet gets a copy per further fan (rarely more than
+        // two fans): room for those.
+        std::size_t weldedNodes = 0;
+        for (std::size_t s = 0; s < slots; ++s) weldedNodes += !apart[s];
+        const std::vector<std::uint32_t> newId = dropUnusedPoints(mesh, 2 * weldedNodes);
         stats.weldedVertices = welded;
         stats.collapsedPolygons = collapsed;
         // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
