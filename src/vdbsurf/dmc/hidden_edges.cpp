@@ -125,7 +125,7 @@ public:
             std::stable_sort(order.begin(), order.end(),
                              [&](int x, int y) { return std::fabs(x - middle) < std::fabs(y - middle); });
             for (int i : order) {
-                const std::optional<Vec3f> placed = omegaOffset(pa + (pb - pa) * (double(i) / n) - world(c));
+                const std::optional<Vec3f> placed = offsetInOmega(pa + (pb - pa) * (double(i) / n) - world(c), mFrame.h);
                 if (!placed) continue;
                 const Vec3f off = *placed;
                 ++evaluated;
@@ -208,19 +208,6 @@ private:
     }
 
     Vec3d world(const Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
-    // The float offset that puts a node at `rel` from its place, if that lies in its Ω. A point on
-    // the border between two Ω (an edge's middle) is rounded to either side, so it is taken a
-    // hair inside; so is any float that would round out.
-    std::optional<Vec3f> omegaOffset(Vec3d rel) const {
-        const double half = mFrame.h / 2, tol = 1e-6 * mFrame.h, inner = half * (1 - 1e-5);
-        for (int i = 0; i < 3; ++i) {
-            double& r = rel[std::size_t(i)];
-            if (r < -half - tol || r >= half + tol) return std::nullopt;
-            r = std::clamp(r, -inner, inner);
-        }
-        return Vec3f(rel);
-    }
-
     const Field& mField;
     const LatticeFrame& mFrame;
     double mIso;

@@ -10,7 +10,9 @@
 
 #include <openvdb/openvdb.h>
 
+#include <algorithm>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +28,19 @@ struct LatticeDeformation {
     bool empty() const { return offsets->empty() && onSurface->empty(); }
     std::uint64_t movedNodes() const { return offsets->activeVoxelCount(); }
 };
+
+// The float offset that moves a node by `rel` (world units), if that stays in its Ω. A point on
+// the border between two Ω (an edge's middle) is rounded to either side, so it is taken a hair
+// inside; so is any float that would round out.
+inline std::optional<Vec3f> offsetInOmega(Vec3d rel, double h) {
+    const double half = h / 2, tol = 1e-6 * h, inner = half * (1 - 1e-5);
+    for (int i = 0; i < 3; ++i) {
+        double& r = rel[std::size_t(i)];
+        if (r < -half - tol || r >= half + tol) return std::nullopt;
+        r = std::clamp(r, -inner, inner);
+    }
+    return Vec3f(rel);
+}
 
 // Activates the cells around every moved node (clipped to the lattice's range): a node that
 // moved can change the sides of the cells it is a corner of.

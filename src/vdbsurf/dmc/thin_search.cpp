@@ -117,7 +117,6 @@ public:
     // Strictly on the other side of a node whose side is `inside`: an iso value counts for neither.
     bool otherSide(bool inside, double v) const { return isOtherSide(inside, v, mIso, mSide); }
 
-
     // The node's new offset, if its Ω holds samples on the other side. `around` holds the values
     // of the 3x3x3 nodes centred on it (x fastest).
     std::optional<Vec3f> search(const Coord& n, const double* around, bool onlyUnrepresented,
@@ -267,46 +266,35 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                               std::vector<Vec3i>* movedOut) {
     const LatticeFrame& frame = lattice.frame;
     // A point for node n on the segment a-b (which lies in a thin part): the middle of the
-    // stretch inside n's Ω (kept a hair inside), or, where the segment only grazes Ω (a part
-    // running along the edge where four Ω meet), the point of Ω nearest to it, if that is within
-    // half a search step. Returned as an offset from n that stays inside Ω after rounding to float.
-    const double nudge = frame.h * 1e-4, reach = frame.h / (2.0 * options.steps);
+    // stretch inside n's Ω, or, where the segment only grazes Ω (a part running along the edge
+    // where four Ω meet), the point of Ω nearest to it, if that is within half a search step.
+    // Returned as an offset from n (offsetInOmega).
+    const double reach = frame.h / (2.0 * options.steps);
     auto segmentInOmega = [&](const Coord& n, const Vec3d& a, const Vec3d& b) -> std::optional<Vec3f> {
         const Vec3d centre = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())), d = b - a;
-        const double half = frame.h / 2 - nudge;
-        auto clampToOmega = [&](const Vec3d& q) {
-            Vec3d c;
-            for (int k = 0; k < 3; ++k) c[k] = std::clamp(q[k], centre[k] - half, centre[k] + half);
-            return c;
-        };
+        const double half = frame.h / 2;
         double t0 = 0, t1 = 1;
         for (int k = 0; k < 3 && t0 <= t1; ++k) {
-            const double lo = centre[k] - half, hi = centre[k] + half;
             if (d[k] == 0) {
-                if (a[k] < lo || a[k] > hi) t0 = 1, t1 = 0;
+                if (std::fabs(a[k] - centre[k]) > half) t0 = 1, t1 = 0;
                 continue;
             }
-            double ta = (lo - a[k]) / d[k], tb = (hi - a[k]) / d[k];
+            double ta = (centre[k] - half - a[k]) / d[k], tb = (centre[k] + half - a[k]) / d[k];
             if (ta > tb) std::swap(ta, tb);
             t0 = std::max(t0, ta);
             t1 = std::min(t1, tb);
         }
-        Vec3d q;
-        if (t0 <= t1) {
-            q = clampToOmega(a + d * (0.5 * (t0 + t1)));
-        } else {
-            double best = INFINITY;
-            for (int i = 0; i <= 32; ++i) {
-                const Vec3d s = a + d * (i / 32.0), c = clampToOmega(s);
-                const double dist = length(c - s);
-                if (dist < best) best = dist, q = c;
-            }
-            if (!(best <= reach)) return std::nullopt;
+        if (t0 <= t1) return offsetInOmega(a + d * (0.5 * (t0 + t1)) - centre, frame.h);
+        double best = INFINITY;
+        Vec3d nearest;
+        for (int i = 0; i <= 32; ++i) {
+            const Vec3d rel = a + d * (i / 32.0) - centre;
+            Vec3d clamped;
+            for (int k = 0; k < 3; ++k) clamped[k] = std::clamp(rel[k], -half, half);
+            const double dist = length(clamped - rel);
+            if (dist < best) best = dist, nearest = clamped;
         }
-        const Vec3f off(q - centre);
-        for (int k = 0; k < 3; ++k)
-            if (!(std::fabs(double(off[k])) < frame.h / 2)) return std::nullopt;
-        return off;
+        return best <= reach ? offsetInOmega(nearest, frame.h) : std::nullopt;
     };
     const double iso = options.iso;
     const Inside side = field.inside();
@@ -355,12 +343,18 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 const bool pInside = insideAt(0, 0, 0);
                 bool pMoved = false;
                 const Vec3d pPos = position(0, 0, 0, pMoved);
-                auto joined = [&](const Vec3d& q) {
-                    for (int k = 1; k < 6; ++k) {
-                        const double v = field.value(pPos + (q - pPos) * (k / 6.0));
+                // Does the segment from p to q stay on p's side at `steps` steps?
+                auto joined = [&](const Vec3d& q, int steps) {
+                    for (int k = 1; k < steps; ++k) {
+                        ++evaluated;
+                        const double v = field.value(pPos + (q - pPos) * (double(k) / steps));
                         if (pInside ? !isInside(v, iso, side) : !searcher.otherSide(true, v)) return false;
                     }
                     return true;
+                };
+                // Do all these nodes (offsets from p) lie on the other side from p?
+                auto separate = [&](const std::vector<Vec3i>& nodes) {
+                    return std::all_of(nodes.begin(), nodes.end(), [&](const Vec3i& b) { return insideAt(b.x, b.y, b.z) != pInside; });
                 };
                 // Try the nodes between (offsets from p); the one that lands nearest the middle moves.
                 // With `to` (the other node of a diagonal the part joins), a node whose Ω the
@@ -373,21 +367,21 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                         const double dist = length(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off) - middle);
                         if (dist < bestDistance) bestDistance = dist, best = Bridge{n, off};
                     };
+                    std::vector<Vec3i> unmoved;
                     for (const Vec3i& b : between) {
                         bool moved = false;
                         position(b.x, b.y, b.z, moved);
-                        if (moved) continue;
+                        if (!moved) unmoved.push_back(b);
+                    }
+                    for (const Vec3i& b : unmoved) {
                         const Coord n = p.offsetBy(b.x, b.y, b.z);
                         for (int z = -1; z <= 1; ++z)
                             for (int y = -1; y <= 1; ++y)
                                 for (int x = -1; x <= 1; ++x) around[local3(x, y, z)] = rest(b.x + x, b.y + y, b.z + z);
                         if (const std::optional<Vec3f> off = searcher.search(n, around, false, cells, evaluated, found)) consider(n, *off);
                     }
-                    for (std::size_t i = 0; i < between.size() && !best && to; ++i) {
-                        const Vec3i& b = between[i];
-                        bool moved = false;
-                        position(b.x, b.y, b.z, moved);
-                        if (moved) continue;
+                    for (std::size_t i = 0; i < unmoved.size() && !best && to; ++i) {
+                        const Vec3i& b = unmoved[i];
                         const Coord n = p.offsetBy(b.x, b.y, b.z);
                         if (const std::optional<Vec3f> off = segmentInOmega(n, pPos, *to)) {
                             ++evaluated;
@@ -398,21 +392,31 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     }
                     if (best) proposals[fi].push_back(*best);
                 };
+                // Where p and q (an offset from p) lie in one part, one of `between` moves into it.
+                // Joined is checked at six steps, or, `fine`, at steps finer than the thinnest part
+                // the search keeps (over two cells, six samples could step over a sheet of the
+                // other side).
+                auto bridgeTo = [&](const Vec3i& q, const std::vector<Vec3i>& between, bool fine) {
+                    bool moved = false;
+                    const Vec3d qPos = position(q.x, q.y, q.z, moved);
+                    const int steps = fine ? int(std::ceil(length(qPos - pPos) / frame.h * (options.steps + 1))) : 6;
+                    if (joined(qPos, steps)) bridge(between, (pPos + qPos) * 0.5, &qPos);
+                };
+                // The offset with a along `axis` and b, c along the next two axes.
+                auto alongAxes = [](int axis, int a, int b, int c) {
+                    Vec3i o;
+                    o[std::size_t(axis)] = a;
+                    o[std::size_t((axis + 1) % 3)] = b;
+                    o[std::size_t((axis + 2) % 3)] = c;
+                    return o;
+                };
                 // A node alone on its side among its six neighbours: the part it lies in is thin
                 // here, and neighbours that find the part in their Ω join it (the paper's flood).
                 {
-                    bool alone = true;
-                    for (int k = 0; k < 6 && alone; ++k) {
-                        Vec3i e;
-                        e[std::size_t(k / 2)] = k % 2 ? 1 : -1;
-                        alone = insideAt(e.x, e.y, e.z) != pInside;
-                    }
-                    if (alone)
-                        for (int k = 0; k < 6; ++k) {
-                            Vec3i e;
-                            e[std::size_t(k / 2)] = k % 2 ? 1 : -1;
-                            bridge({e}, pPos, nullptr);
-                        }
+                    std::vector<Vec3i> six;
+                    for (int k = 0; k < 6; ++k) six.push_back(alongAxes(k / 2, k % 2 ? 1 : -1, 0, 0));
+                    if (separate(six))
+                        for (const Vec3i& e : six) bridge({e}, pPos, nullptr);
                 }
                 // Face diagonals: inside nodes only (outside ones are joined by marching cubes).
                 if (pInside)
@@ -424,41 +428,17 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                                     ea[std::size_t(a)] = sa;
                                     eb[std::size_t(b)] = sb;
                                     const Vec3i q = ea + eb;
-                                    if (!insideAt(q.x, q.y, q.z) || insideAt(ea.x, ea.y, ea.z) || insideAt(eb.x, eb.y, eb.z)) continue;
-                                    bool moved = false;
-                                    const Vec3d qPos = position(q.x, q.y, q.z, moved);
-                                    if (!joined(qPos)) continue;
-                                    bridge({ea, eb}, (pPos + qPos) * 0.5, &qPos);
+                                    if (insideAt(q.x, q.y, q.z) && separate({ea, eb})) bridgeTo(q, {ea, eb}, false);
                                 }
                 // Cell diagonals, either side.
                 for (int d = 0; d < 8; ++d) {
                     const Vec3i q((d & 1) ? 1 : -1, (d & 2) ? 1 : -1, (d & 4) ? 1 : -1);
                     if (insideAt(q.x, q.y, q.z) != pInside) continue;
                     std::vector<Vec3i> between;
-                    bool separated = true;
-                    for (int c = 1; c < 7 && separated; ++c) {
-                        const Vec3i b((c & 1) ? q.x : 0, (c & 2) ? q.y : 0, (c & 4) ? q.z : 0);
-                        separated = insideAt(b.x, b.y, b.z) != pInside;
-                        between.push_back(b);
-                    }
-                    if (!separated) continue;
-                    bool moved = false;
-                    const Vec3d qPos = position(q.x, q.y, q.z, moved);
-                    if (!joined(qPos)) continue;
+                    for (int c = 1; c < 7; ++c) between.emplace_back((c & 1) ? q.x : 0, (c & 2) ? q.y : 0, (c & 4) ? q.z : 0);
                     // Nodes next to p first: after one moves, a face diagonal remains and is bridged next round.
-                    bridge({Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)}, (pPos + qPos) * 0.5, &qPos);
+                    if (separate(between)) bridgeTo(q, {Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)}, false);
                 }
-                // joined(), at steps finer than the thinnest part the search keeps: over two
-                // cells, six samples could step over a sheet of the other side.
-                auto joinedFinely = [&](const Vec3d& q) {
-                    const int n = int(std::ceil(length(q - pPos) / frame.h * (options.steps + 1)));
-                    for (int k = 1; k < n; ++k) {
-                        ++evaluated;
-                        const double v = field.value(pPos + (q - pPos) * (double(k) / n));
-                        if (pInside ? !isInside(v, iso, side) : !searcher.otherSide(true, v)) return false;
-                    }
-                    return true;
-                };
                 // Pierced faces, either side: p and a node q of the cell beyond a face whose
                 // corners all lie on the other side (q is two steps from p along the face's axis,
                 // at most one across). A part through that face alone joins two cells that
@@ -467,31 +447,16 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     for (int s = -1; s <= 1; s += 2)
                         for (int du = -1; du <= 1; ++du)
                             for (int dv = -1; dv <= 1; ++dv) {
-                                const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-                                Vec3i q;
-                                q[std::size_t(axis)] = 2 * s;
-                                q[std::size_t(u)] = du;
-                                q[std::size_t(v)] = dv;
+                                const Vec3i q = alongAxes(axis, 2 * s, du, dv);
                                 if (insideAt(q.x, q.y, q.z) != pInside) continue;
                                 // The face's corners: one step along the axis; across it, the
                                 // coordinates between p's and q's (where those agree, the faces on
                                 // both sides of the line they share).
                                 std::vector<Vec3i> corners;
-                                bool separated = true;
-                                for (int cu = du ? std::min(0, du) : -1; cu <= (du ? std::max(0, du) : 1) && separated; ++cu)
-                                    for (int cv = dv ? std::min(0, dv) : -1; cv <= (dv ? std::max(0, dv) : 1) && separated; ++cv) {
-                                        Vec3i c;
-                                        c[std::size_t(axis)] = s;
-                                        c[std::size_t(u)] = cu;
-                                        c[std::size_t(v)] = cv;
-                                        separated = insideAt(c.x, c.y, c.z) != pInside;
-                                        corners.push_back(c);
-                                    }
-                                if (!separated) continue;
-                                bool moved = false;
-                                const Vec3d qPos = position(q.x, q.y, q.z, moved);
-                                if (!joinedFinely(qPos)) continue;
-                                bridge(corners, (pPos + qPos) * 0.5, &qPos);
+                                for (int cu = du ? std::min(0, du) : -1; cu <= (du ? std::max(0, du) : 1); ++cu)
+                                    for (int cv = dv ? std::min(0, dv) : -1; cv <= (dv ? std::max(0, dv) : 1); ++cv)
+                                        corners.push_back(alongAxes(axis, s, cu, cv));
+                                if (separate(corners)) bridgeTo(q, corners, true);
                             }
             }
             bridgeSamples.local() += evaluated;
