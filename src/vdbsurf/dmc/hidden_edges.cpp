@@ -181,30 +181,87 @@ private:
         return runsAlong(pa, pb, insideA, insideB, n, examined, evaluated).size() - (insideA == insideB ? 1 : 2);
     }
 
+    // Is there a path from a to b on side `inside` that bows away from the segment by at most
+    // about a third of a cell? Such ends lie in one piece of their side here, and a run of the
+    // other side on the segment between them is the other side's surface curving across it, not
+    // a part between them (a crack between them crosses every such path).
+    bool bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const {
+        const Vec3d d = b - a;
+        const double len = length(d);
+        if (len == 0) return true;
+        const Vec3d w = d / len;
+        Vec3d u = cross(w, std::fabs(w.x) < 0.6 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0));
+        u = normalized(u);
+        const Vec3d v = cross(w, u);
+        for (const double bow : {0.1, 0.2, 0.35})
+            for (int k = 0; k < 8; ++k) {
+                const double angle = k * (M_PI / 4);
+                const Vec3d dir = u * std::cos(angle) + v * std::sin(angle);
+                const int n = int(std::ceil((len + 2 * bow * mFrame.h) * mSteps / mFrame.h)) + 1;
+                bool joined = true;
+                for (int i = 1; i < n && joined; ++i) {
+                    const double t = double(i) / n;
+                    ++evaluated;
+                    joined = isOtherSide(!inside, mField.value(a + d * t + dir * (4 * t * (1 - t) * bow * mFrame.h)), mIso, mSide);
+                }
+                if (joined) return true;
+            }
+        return false;
+    }
+
     // Does moving node c (on side `inside`, not moved) to `to` leave its six edges, with the
     // diagonal that asks (`gained` runs fewer there), hiding fewer runs in all and no edge more,
-    // and is c not alone on its side among its neighbours (then it is a thin part itself)?
+    // is c not alone on its side among its neighbours (then it is a thin part itself), and does
+    // no face around c become ambiguous across a part?
     bool improves(const Coord& c, bool inside, const Vec3d& to, std::size_t gained, OffsetAccessor& offsets, std::uint64_t& examined,
                   std::uint64_t& evaluated) const {
         double around[27];
         mField.sampleNodes(mFrame, {c.x() - 1, c.y() - 1, c.z() - 1}, {3, 3, 3}, nullptr, around);
+        // Where a neighbour (offset d from c) is now, and on which side.
+        auto at = [&](const Coord& d, bool& nbInside) {
+            const Coord nb = c + d;
+            openvdb::Vec3f off(0.0f);
+            const bool moved = offsets.probeValue(nb, off);
+            nbInside = moved != isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide);
+            return world(nb) + Vec3d(off.x(), off.y(), off.z());
+        };
         std::size_t before = 0, after = 0;
         bool alone = true;
         for (int k = 0; k < 6; ++k) {
-            const Coord nb = neighbour(c, k / 2, k % 2 ? 1 : -1), d = nb - c;
+            const Coord nb = neighbour(c, k / 2, k % 2 ? 1 : -1);
             if (!validNode(nb)) continue;
-            openvdb::Vec3f off(0.0f);
-            const bool moved = offsets.probeValue(nb, off);
-            const bool nbInside = moved != isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide);
+            bool nbInside = false;
+            const Vec3d p = at(nb - c, nbInside);
             if (nbInside == inside) alone = false;
-            const Vec3d p = world(nb) + Vec3d(off.x(), off.y(), off.z());
             const std::size_t was = hiddenRuns(world(c), p, inside, nbInside, examined, evaluated);
-            const std::size_t now = hiddenRuns(to, p, !inside, nbInside, examined, evaluated);
-            if (now > was) return false; // no edge may lose what it showed
+            std::size_t now = hiddenRuns(to, p, !inside, nbInside, examined, evaluated);
+            // No edge may lose what it showed, unless the new run is only the other side's
+            // surface bulging across the edge where both ends lie in one piece of their side.
+            if (now > was) {
+                if (inside == nbInside || !bentPathJoins(to, p, nbInside, evaluated)) return false;
+                now = was;
+            }
             before += was;
             after += now;
         }
-        return !alone && after < before + gained;
+        if (alone || after >= before + gained) return false;
+        // An inside node that moves out may make the faces around it ambiguous: marching cubes
+        // then joins it to the outside corner across each such face, which must not hide a part
+        // (a move out of one side of a thin shell must not join the shell's two sides).
+        if (!inside) return true;
+        for (int u = 0; u < 3; ++u)
+            for (int v = u + 1; v < 3; ++v)
+                for (int su = -1; su <= 1; su += 2)
+                    for (int sv = -1; sv <= 1; sv += 2) {
+                        const Coord du = neighbour(Coord(0, 0, 0), u, su), dv = neighbour(Coord(0, 0, 0), v, sv);
+                        if (!validNode(c + du) || !validNode(c + dv) || !validNode(c + du + dv)) continue;
+                        bool inU = false, inV = false, inFar = false;
+                        at(du, inU);
+                        at(dv, inV);
+                        const Vec3d far = at(du + dv, inFar);
+                        if (inU && inV && !inFar && hiddenRuns(to, far, false, false, examined, evaluated) > 0) return false;
+                    }
+        return true;
     }
 
     Vec3d world(const Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }

@@ -393,13 +393,13 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     if (best) proposals[fi].push_back(*best);
                 };
                 // Where p and q (an offset from p) lie in one part, one of `between` moves into it.
-                // Joined is checked at six steps, or, `fine`, at steps finer than the thinnest part
-                // the search keeps (over two cells, six samples could step over a sheet of the
-                // other side).
-                auto bridgeTo = [&](const Vec3i& q, const std::vector<Vec3i>& between, bool fine) {
+                // Joined is checked at steps finer than the thinnest part the search keeps: coarser
+                // steps could step over a sheet of the other side between p and q, and a node
+                // moved across that sheet would join its two sides (a thin shell's surfaces).
+                auto bridgeTo = [&](const Vec3i& q, const std::vector<Vec3i>& between) {
                     bool moved = false;
                     const Vec3d qPos = position(q.x, q.y, q.z, moved);
-                    const int steps = fine ? int(std::ceil(length(qPos - pPos) / frame.h * (options.steps + 1))) : 6;
+                    const int steps = int(std::ceil(length(qPos - pPos) / frame.h * (options.steps + 1)));
                     if (joined(qPos, steps)) bridge(between, (pPos + qPos) * 0.5, &qPos);
                 };
                 // The offset with a along `axis` and b, c along the next two axes.
@@ -428,7 +428,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                                     ea[std::size_t(a)] = sa;
                                     eb[std::size_t(b)] = sb;
                                     const Vec3i q = ea + eb;
-                                    if (insideAt(q.x, q.y, q.z) && separate({ea, eb})) bridgeTo(q, {ea, eb}, false);
+                                    if (insideAt(q.x, q.y, q.z) && separate({ea, eb})) bridgeTo(q, {ea, eb});
                                 }
                 // Cell diagonals, either side.
                 for (int d = 0; d < 8; ++d) {
@@ -437,7 +437,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     std::vector<Vec3i> between;
                     for (int c = 1; c < 7; ++c) between.emplace_back((c & 1) ? q.x : 0, (c & 2) ? q.y : 0, (c & 4) ? q.z : 0);
                     // Nodes next to p first: after one moves, a face diagonal remains and is bridged next round.
-                    if (separate(between)) bridgeTo(q, {Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)}, false);
+                    if (separate(between)) bridgeTo(q, {Vec3i(q.x, 0, 0), Vec3i(0, q.y, 0), Vec3i(0, 0, q.z)});
                 }
                 // Pierced faces, either side: p and a node q of the cell beyond a face whose
                 // corners all lie on the other side (q is two steps from p along the face's axis,
@@ -456,7 +456,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                                 for (int cu = du ? std::min(0, du) : -1; cu <= (du ? std::max(0, du) : 1); ++cu)
                                     for (int cv = dv ? std::min(0, dv) : -1; cv <= (dv ? std::max(0, dv) : 1); ++cv)
                                         corners.push_back(alongAxes(axis, s, cu, cv));
-                                if (separate(corners)) bridgeTo(q, corners, true);
+                                if (separate(corners)) bridgeTo(q, corners);
                             }
             }
             bridgeSamples.local() += evaluated;
