@@ -1,6 +1,7 @@
 #include "vdbsurf/dmc/hidden_edges.h"
 
 #include "vdbsurf/core/cancel.h"
+#include "vdbsurf/dmc/edge_runs.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/leaf_nodes.h"
 #include "vdbsurf/dmc/thin_search.h"
@@ -68,18 +69,12 @@ struct Move {
     }
 };
 
-using OffsetAccessor = openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>;
-
 class EdgeExaminer {
 public:
     EdgeExaminer(const Field& field, const Lattice& lattice, double iso, int steps)
-        : mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()), mSteps(steps),
-          mNodeLo(lattice.cellRange.min()), mNodeHi(lattice.cellRange.max().offsetBy(1)) {}
+        : mRuns(field, lattice, iso, steps), mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()) {}
 
-    bool validNode(const Coord& c) const {
-        return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&
-               c.y() <= mNodeHi.y() && c.z() <= mNodeHi.z();
-    }
+    bool validNode(const Coord& c) const { return mRuns.validNode(c); }
 
     double rest(const Coord& c) const {
         double v = 0;
@@ -107,7 +102,7 @@ public:
         }
         const Vec3d pa = world(a) + Vec3d(offA.x(), offA.y(), offA.z()), pb = world(b) + Vec3d(offB.x(), offB.y(), offB.z());
         int n = 0;
-        const std::vector<Run> runs = runsAlong(pa, pb, insideA, insideB, n, examined, evaluated);
+        const std::vector<EdgeRuns::Run> runs = mRuns.runsAlong(pa, pb, insideA, insideB, n, examined, evaluated);
         if (runs.size() <= (insideA == insideB ? 1u : 2u)) return std::nullopt;
         // An end that has not moved goes into the run next to its own, when that run is inside the
         // edge (a part the edge hides), at the sample nearest the run's middle that its Ω holds —
@@ -115,7 +110,7 @@ public:
         // and it is not the only node of a part itself.
         for (const bool fromA : {true, false}) {
             if (fromA ? movedA : movedB) continue;
-            const Run& run = runs[fromA ? 1 : runs.size() - 2];
+            const EdgeRuns::Run& run = runs[fromA ? 1 : runs.size() - 2];
             if (run.first == 0 || run.last == n) continue;
             const Coord c = fromA ? a : b;
             const bool inside = fromA ? insideA : insideB;
@@ -133,7 +128,7 @@ public:
                 // A diagonal's own runs count too (the axis edges are among the six).
                 const std::size_t own = e.diagonal() ? runs.size() - 1 : 0;
                 const Vec3d to = world(c) + Vec3d(off), far = fromA ? pb : pa;
-                const std::size_t ownAfter = e.diagonal() ? hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
+                const std::size_t ownAfter = e.diagonal() ? mRuns.hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
                 if (ownAfter > own || !improves(c, inside, to, own - ownAfter, offsets, examined, evaluated)) continue;
                 return Move{c, off, e};
             }
@@ -142,135 +137,21 @@ public:
     }
 
 private:
-    struct Run {
-        bool inside;
-        int first, last;
-    };
-
-    // Runs of samples on one side from a to b, at n steps shorter than h/k: a part at least h/k
-    // wide along the edge holds a sample. A value at iso stays in the run before it. Ends on one
-    // side whose bounds rule out the iso value give one run without sampling.
-    std::vector<Run> runsAlong(const Vec3d& pa, const Vec3d& pb, bool insideA, bool insideB, int& n, std::uint64_t& examined,
-                               std::uint64_t& evaluated) const {
-        n = int(std::floor(length(pb - pa) * mSteps / mFrame.h)) + 1;
-        std::vector<Run> runs{{insideA, 0, 0}};
-        if (insideA == insideB) {
-            const Vec3d lo(std::min(pa.x, pb.x), std::min(pa.y, pb.y), std::min(pa.z, pb.z));
-            const Vec3d hi(std::max(pa.x, pb.x), std::max(pa.y, pb.y), std::max(pa.z, pb.z));
-            if (!straddles(mField.bounds(Box3{lo, hi}), mIso)) {
-                runs.back().last = n;
-                return runs;
-            }
-        }
-        ++examined;
-        for (int i = 1; i < n; ++i) {
-            ++evaluated;
-            const double v = mField.value(pa + (pb - pa) * (double(i) / n));
-            if (isOtherSide(runs.back().inside, v, mIso, mSide)) runs.push_back({!runs.back().inside, i, i});
-            else runs.back().last = i;
-        }
-        if (runs.back().inside != insideB) runs.push_back({insideB, n, n});
-        else runs.back().last = n;
-        return runs;
-    }
-
-    // Runs beyond what the ends' sides explain.
-    std::size_t hiddenRuns(const Vec3d& pa, const Vec3d& pb, bool insideA, bool insideB, std::uint64_t& examined,
-                           std::uint64_t& evaluated) const {
-        int n = 0;
-        return runsAlong(pa, pb, insideA, insideB, n, examined, evaluated).size() - (insideA == insideB ? 1 : 2);
-    }
-
-    // Is there a path from a to b on side `inside` that bows away from the segment by at most
-    // about a third of a cell? Such ends lie in one piece of their side here, and a run of the
-    // other side on the segment between them is the other side's surface curving across it, not
-    // a part between them (a crack between them crosses every such path).
-    bool bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const {
-        const Vec3d d = b - a;
-        const double len = length(d);
-        if (len == 0) return true;
-        const Vec3d w = d / len;
-        Vec3d u = cross(w, std::fabs(w.x) < 0.6 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0));
-        u = normalized(u);
-        const Vec3d v = cross(w, u);
-        for (const double bow : {0.1, 0.2, 0.35})
-            for (int k = 0; k < 8; ++k) {
-                const double angle = k * (M_PI / 4);
-                const Vec3d dir = u * std::cos(angle) + v * std::sin(angle);
-                const int n = int(std::ceil((len + 2 * bow * mFrame.h) * mSteps / mFrame.h)) + 1;
-                bool joined = true;
-                for (int i = 1; i < n && joined; ++i) {
-                    const double t = double(i) / n;
-                    ++evaluated;
-                    joined = isOtherSide(!inside, mField.value(a + d * t + dir * (4 * t * (1 - t) * bow * mFrame.h)), mIso, mSide);
-                }
-                if (joined) return true;
-            }
-        return false;
-    }
-
-    // Does moving node c (on side `inside`, not moved) to `to` leave its six edges, with the
-    // diagonal that asks (`gained` runs fewer there), hiding fewer runs in all and no edge more,
-    // is c not alone on its side among its neighbours (then it is a thin part itself), and does
-    // no face around c become ambiguous across a part?
+    // Does moving node c (on side `inside`, not moved) to `to` keep what its edges show, leave
+    // its six edges, with the diagonal that asks (`gained` runs fewer there), hiding fewer runs in
+    // all, and is c not alone on its side among its neighbours (then it is a thin part itself)?
     bool improves(const Coord& c, bool inside, const Vec3d& to, std::size_t gained, OffsetAccessor& offsets, std::uint64_t& examined,
                   std::uint64_t& evaluated) const {
-        double around[27];
-        mField.sampleNodes(mFrame, {c.x() - 1, c.y() - 1, c.z() - 1}, {3, 3, 3}, nullptr, around);
-        // Where a neighbour (offset d from c) is now, and on which side.
-        auto at = [&](const Coord& d, bool& nbInside) {
-            const Coord nb = c + d;
-            openvdb::Vec3f off(0.0f);
-            const bool moved = offsets.probeValue(nb, off);
-            nbInside = moved != isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide);
-            return world(nb) + Vec3d(off.x(), off.y(), off.z());
-        };
-        std::size_t before = 0, after = 0;
-        bool alone = true;
-        for (int k = 0; k < 6; ++k) {
-            const Coord nb = neighbour(c, k / 2, k % 2 ? 1 : -1);
-            if (!validNode(nb)) continue;
-            bool nbInside = false;
-            const Vec3d p = at(nb - c, nbInside);
-            if (nbInside == inside) alone = false;
-            const std::size_t was = hiddenRuns(world(c), p, inside, nbInside, examined, evaluated);
-            std::size_t now = hiddenRuns(to, p, !inside, nbInside, examined, evaluated);
-            // No edge may lose what it showed, unless the new run is only the other side's
-            // surface bulging across the edge where both ends lie in one piece of their side.
-            if (now > was) {
-                if (inside == nbInside || !bentPathJoins(to, p, nbInside, evaluated)) return false;
-                now = was;
-            }
-            before += was;
-            after += now;
-        }
-        if (alone || after >= before + gained) return false;
-        // An inside node that moves out may make the faces around it ambiguous: marching cubes
-        // then joins it to the outside corner across each such face, which must not hide a part
-        // (a move out of one side of a thin shell must not join the shell's two sides).
-        if (!inside) return true;
-        for (int u = 0; u < 3; ++u)
-            for (int v = u + 1; v < 3; ++v)
-                for (int su = -1; su <= 1; su += 2)
-                    for (int sv = -1; sv <= 1; sv += 2) {
-                        const Coord du = neighbour(Coord(0, 0, 0), u, su), dv = neighbour(Coord(0, 0, 0), v, sv);
-                        if (!validNode(c + du) || !validNode(c + dv) || !validNode(c + du + dv)) continue;
-                        bool inU = false, inV = false, inFar = false;
-                        at(du, inU);
-                        at(dv, inV);
-                        const Vec3d far = at(du + dv, inFar);
-                        if (inU && inV && !inFar && hiddenRuns(to, far, false, false, examined, evaluated) > 0) return false;
-                    }
-        return true;
+        const EdgeRuns::MoveEffect effect = mRuns.moveEffect(c, inside, to, offsets, examined, evaluated);
+        return effect.keeps && !effect.alone && effect.after < effect.before + gained;
     }
 
     Vec3d world(const Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
+    EdgeRuns mRuns;
     const Field& mField;
     const LatticeFrame& mFrame;
     double mIso;
     Inside mSide;
-    int mSteps;
-    Coord mNodeLo, mNodeHi;
 };
 
 // Every edge of the active cells, examined leaf by leaf with the leaf's node values.

@@ -3,6 +3,7 @@
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/progress.h"
+#include "vdbsurf/dmc/edge_runs.h"
 #include "vdbsurf/dmc/hidden_edges.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/leaf_nodes.h"
@@ -299,6 +300,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     const double iso = options.iso;
     const Inside side = field.inside();
     const OmegaSearch searcher(field, lattice, iso, options.steps);
+    const EdgeRuns edgeRuns(field, lattice, iso, options.steps);
     openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
     std::vector<Coord> frontier;
     for (const Vec3i& v : from) frontier.emplace_back(v.x, v.y, v.z);
@@ -321,7 +323,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
             openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false> offsets(*deformation.offsets);
             std::vector<Vec3d> found;
             double block[125], around[27];
-            std::uint64_t evaluated = 0;
+            std::uint64_t evaluated = 0, examined = 0;
             for (std::size_t fi = r.begin(); fi < r.end(); ++fi) {
                 const Coord p = frontier[fi];
                 // Values at the 5x5x5 nodes around p (3x3x3 around each node between).
@@ -363,9 +365,16 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 auto bridge = [&](const std::vector<Vec3i>& between, const Vec3d& middle, const Vec3d* to) {
                     std::optional<Bridge> best;
                     double bestDistance = INFINITY;
+                    // A move that would make one of the node's edges hide what it showed (a
+                    // crack's node pulled into the solid beside it) is not made.
                     auto consider = [&](const Coord& n, const Vec3f& off) {
-                        const double dist = length(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off) - middle);
-                        if (dist < bestDistance) bestDistance = dist, best = Bridge{n, off};
+                        const Vec3d to = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off);
+                        const double dist = length(to - middle);
+                        if (dist >= bestDistance) return;
+                        const Coord d = n - p;
+                        const bool restInside = isInside(rest(d.x(), d.y(), d.z()), iso, side);
+                        if (!edgeRuns.moveEffect(n, restInside, to, offsets, examined, evaluated).keeps) return;
+                        bestDistance = dist, best = Bridge{n, off};
                     };
                     std::vector<Vec3i> unmoved;
                     for (const Vec3i& b : between) {

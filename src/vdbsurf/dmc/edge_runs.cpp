@@ -1,0 +1,124 @@
+#include "vdbsurf/dmc/edge_runs.h"
+
+#include "vdbsurf/lattice/lattice.h"
+
+#include <cmath>
+
+namespace vdbsurf {
+
+using openvdb::Coord;
+
+EdgeRuns::EdgeRuns(const Field& field, const Lattice& lattice, double iso, int steps)
+    : mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()), mSteps(steps), mNodeLo(lattice.cellRange.min()),
+      mNodeHi(lattice.cellRange.max().offsetBy(1)) {}
+
+std::vector<EdgeRuns::Run> EdgeRuns::runsAlong(const Vec3d& pa, const Vec3d& pb, bool insideA, bool insideB, int& n,
+                                               std::uint64_t& examined, std::uint64_t& evaluated) const {
+    n = int(std::floor(length(pb - pa) * mSteps / mFrame.h)) + 1;
+    std::vector<Run> runs{{insideA, 0, 0}};
+    if (insideA == insideB) {
+        const Vec3d lo(std::min(pa.x, pb.x), std::min(pa.y, pb.y), std::min(pa.z, pb.z));
+        const Vec3d hi(std::max(pa.x, pb.x), std::max(pa.y, pb.y), std::max(pa.z, pb.z));
+        if (!straddles(mField.bounds(Box3{lo, hi}), mIso)) {
+            runs.back().last = n;
+            return runs;
+        }
+    }
+    ++examined;
+    for (int i = 1; i < n; ++i) {
+        ++evaluated;
+        const double v = mField.value(pa + (pb - pa) * (double(i) / n));
+        if (isOtherSide(runs.back().inside, v, mIso, mSide)) runs.push_back({!runs.back().inside, i, i});
+        else runs.back().last = i;
+    }
+    if (runs.back().inside != insideB) runs.push_back({insideB, n, n});
+    else runs.back().last = n;
+    return runs;
+}
+
+std::size_t EdgeRuns::hiddenRuns(const Vec3d& pa, const Vec3d& pb, bool insideA, bool insideB, std::uint64_t& examined,
+                                 std::uint64_t& evaluated) const {
+    int n = 0;
+    return runsAlong(pa, pb, insideA, insideB, n, examined, evaluated).size() - (insideA == insideB ? 1 : 2);
+}
+
+bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const {
+    const Vec3d d = b - a;
+    const double len = length(d);
+    if (len == 0) return true;
+    const Vec3d w = d / len;
+    const Vec3d u = normalized(cross(w, std::fabs(w.x) < 0.6 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0)));
+    const Vec3d v = cross(w, u);
+    for (const double bow : {0.1, 0.2, 0.35, 0.5, 0.75})
+        for (int k = 0; k < 8; ++k) {
+            const double angle = k * (M_PI / 4);
+            const Vec3d dir = u * std::cos(angle) + v * std::sin(angle);
+            const int n = int(std::ceil((len + 2 * bow * mFrame.h) * mSteps / mFrame.h)) + 1;
+            bool joined = true;
+            for (int i = 1; i < n && joined; ++i) {
+                const double t = double(i) / n;
+                ++evaluated;
+                joined = isOtherSide(!inside, mField.value(a + d * t + dir * (4 * t * (1 - t) * bow * mFrame.h)), mIso, mSide);
+            }
+            if (joined) return true;
+        }
+    return false;
+}
+
+EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec3d& to, OffsetAccessor& offsets,
+                                          std::uint64_t& examined, std::uint64_t& evaluated) const {
+    MoveEffect effect;
+    double around[27];
+    mField.sampleNodes(mFrame, {c.x() - 1, c.y() - 1, c.z() - 1}, {3, 3, 3}, nullptr, around);
+    // Where the node at offset d from c is now, and on which side.
+    auto at = [&](const Coord& d, bool& nbInside) {
+        const Coord nb = c + d;
+        openvdb::Vec3f off(0.0f);
+        const bool moved = offsets.probeValue(nb, off);
+        nbInside = moved != isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide);
+        return world(nb) + Vec3d(off.x(), off.y(), off.z());
+    };
+    auto step = [](int axis, int sign) { return Coord(axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0); };
+    for (int k = 0; k < 6; ++k) {
+        const Coord d = step(k / 2, k % 2 ? 1 : -1);
+        if (!validNode(c + d)) continue;
+        bool nbInside = false;
+        const Vec3d p = at(d, nbInside);
+        if (nbInside == inside) effect.alone = false;
+        const std::size_t was = hiddenRuns(world(c), p, inside, nbInside, examined, evaluated);
+        std::size_t now = hiddenRuns(to, p, !inside, nbInside, examined, evaluated);
+        // No edge may lose what it showed, unless the new run is only the other side's surface
+        // bulging across the edge where both ends lie in one piece of their side.
+        if (now > was) {
+            if (inside == nbInside || !bentPathJoins(to, p, nbInside, evaluated)) {
+                effect.keeps = false;
+                return effect;
+            }
+            now = was;
+        }
+        effect.before += was;
+        effect.after += now;
+    }
+    // An inside node that moves out may make the faces around it ambiguous: marching cubes then
+    // joins it to the outside corner across each such face, which must not hide a part (a move
+    // out of one side of a thin shell must not join the shell's two sides).
+    if (!inside) return effect;
+    for (int u = 0; u < 3; ++u)
+        for (int v = u + 1; v < 3; ++v)
+            for (int su = -1; su <= 1; su += 2)
+                for (int sv = -1; sv <= 1; sv += 2) {
+                    const Coord du = step(u, su), dv = step(v, sv);
+                    if (!validNode(c + du) || !validNode(c + dv) || !validNode(c + du + dv)) continue;
+                    bool inU = false, inV = false, inFar = false;
+                    at(du, inU);
+                    at(dv, inV);
+                    const Vec3d far = at(du + dv, inFar);
+                    if (inU && inV && !inFar && hiddenRuns(to, far, false, false, examined, evaluated) > 0) {
+                        effect.keeps = false;
+                        return effect;
+                    }
+                }
+    return effect;
+}
+
+} // namespace vdbsurf

@@ -1,0 +1,72 @@
+// What the segments between lattice nodes hide, and what moving one node changes about that:
+// shared by the hidden-edge phase (which moves a node onto a part an edge hides) and bridging
+// (which moves a node into a part two others share), so that neither move makes another edge
+// hide what it showed. A segment is sampled at steps shorter than h/k, so a part at least h/k
+// wide along it holds a sample, as in the thin search's Ω.
+#pragma once
+
+#include "vdbsurf/field/field.h"
+
+#include <openvdb/openvdb.h>
+
+#include <cstdint>
+#include <vector>
+
+namespace vdbsurf {
+
+struct Lattice;
+
+using OffsetAccessor = openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>;
+
+class EdgeRuns {
+public:
+    EdgeRuns(const Field& field, const Lattice& lattice, double iso, int steps);
+
+    struct Run {
+        bool inside;
+        int first, last;
+    };
+
+    // Runs of samples on one side from a to b (ends on the given sides), at n steps. A value at
+    // iso stays in the run before it. Ends on one side whose bounds rule out the iso value give
+    // one run without sampling (`examined` counts the segments sampled).
+    std::vector<Run> runsAlong(const Vec3d& a, const Vec3d& b, bool insideA, bool insideB, int& n, std::uint64_t& examined,
+                               std::uint64_t& evaluated) const;
+
+    // Runs beyond what the ends' sides explain.
+    std::size_t hiddenRuns(const Vec3d& a, const Vec3d& b, bool insideA, bool insideB, std::uint64_t& examined,
+                           std::uint64_t& evaluated) const;
+
+    // What moving node c (on side `inside`, not moved) to `to` (onto the other side) does to its
+    // six edges, the other nodes where `offsets` puts them.
+    struct MoveEffect {
+        bool keeps = true;      // no edge hides a part it showed, no face turns ambiguous across a part
+        std::size_t before = 0; // hidden runs on the six edges before the move
+        std::size_t after = 0;  // and after (bulges that bent paths go around count as before)
+        bool alone = true;      // no neighbour on c's side: c stands for a thin part itself
+    };
+    MoveEffect moveEffect(const openvdb::Coord& c, bool inside, const Vec3d& to, OffsetAccessor& offsets,
+                          std::uint64_t& examined, std::uint64_t& evaluated) const;
+
+    bool validNode(const openvdb::Coord& c) const {
+        return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&
+               c.y() <= mNodeHi.y() && c.z() <= mNodeHi.z();
+    }
+    Vec3d world(const openvdb::Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
+
+private:
+    // Is there a path from a to b on side `inside` that bows away from the segment by less than a
+    // cell? Then the ends lie in one piece of their side here, and a run of the other side on the
+    // segment between them is the other side's surface curving across it, not a part between
+    // them (a crack between them crosses every such path).
+    bool bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const;
+
+    const Field& mField;
+    const LatticeFrame& mFrame;
+    double mIso;
+    Inside mSide;
+    int mSteps;
+    openvdb::Coord mNodeLo, mNodeHi;
+};
+
+} // namespace vdbsurf
