@@ -101,7 +101,8 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     }
     // An inside node that moves out may make the faces around it ambiguous: marching cubes then
     // joins it to the outside corner across each such face, which must not hide a part (a move
-    // out of one side of a thin shell must not join the shell's two sides).
+    // out of one side of a thin shell must not join the shell's two sides), unless the two lie
+    // in one piece of the outside here anyway.
     if (!inside) return effect;
     for (int u = 0; u < 3; ++u)
         for (int v = u + 1; v < 3; ++v)
@@ -113,7 +114,8 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
                     at(du, inU);
                     at(dv, inV);
                     const Vec3d far = at(du + dv, inFar);
-                    if (inU && inV && !inFar && hiddenRuns(to, far, false, false, examined, evaluated) > 0) {
+                    if (inU && inV && !inFar && hiddenRuns(to, far, false, false, examined, evaluated) > 0 &&
+                        !bentPathJoins(to, far, false, evaluated)) {
                         effect.keeps = false;
                         return effect;
                     }

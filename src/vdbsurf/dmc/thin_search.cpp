@@ -209,6 +209,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     const LatticeFrame& frame = lattice.frame;
     const double iso = options.iso;
     const OmegaSearch searcher(field, lattice, iso, options.steps);
+    const EdgeRuns edgeRuns(field, lattice, iso, options.steps);
 
     // A field whose bounds over a cell are its corners' range has nothing hidden inside a cell.
     std::vector<Coord> candidates, ambiguous;
@@ -222,6 +223,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
         Progress progress("thin search", candidates.size(), options.cancel);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
             openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> cells(*lattice.cells);
+            OffsetAccessor offsets(*deformation.offsets);
             std::array<double, 27> around;
             std::vector<Vec3d> found;
             for (std::size_t ci = r.begin(); ci < r.end(); ++ci) {
@@ -229,6 +231,14 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
                 const Coord n = candidates[ci];
                 field.sampleNodes(frame, Vec3i(n.x() - 1, n.y() - 1, n.z() - 1), {3, 3, 3}, nullptr, around.data());
                 moves[ci] = searcher.search(n, around.data(), true, cells, samples[ci], found);
+                // Not where an edge of the node would then hide what it showed (near a crack's
+                // rim, a cell with no inside corner holds a wedge of one half, and a node moved into
+                // it would join the halves across the crack).
+                std::uint64_t examined = 0;
+                const bool inside = isInside(around[13], iso, field.inside());
+                if (moves[ci] && !edgeRuns.moveEffect(n, inside, frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*moves[ci]), offsets,
+                                                      examined, samples[ci]).keeps)
+                    moves[ci].reset();
             }
         });
     }
@@ -239,6 +249,25 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     for (std::size_t ci = 0; ci < candidates.size(); ++ci) {
         local.samples += samples[ci];
         if (!moves[ci]) continue;
+        // Each move was checked with every node at rest: where a neighbour has moved already (in
+        // node order), check again (two nodes of a crack, each moving into the half on its side,
+        // would join the halves by the edge between them).
+        const Coord n = candidates[ci];
+        bool nextToMoved = false;
+        for (int k = 0; k < 6 && !nextToMoved; ++k)
+            nextToMoved = acc.isValueOn(n.offsetBy(k / 2 == 0 ? (k % 2 ? 1 : -1) : 0, k / 2 == 1 ? (k % 2 ? 1 : -1) : 0,
+                                                   k / 2 == 2 ? (k % 2 ? 1 : -1) : 0));
+        if (nextToMoved) {
+            OffsetAccessor offsets(*deformation.offsets);
+            std::uint64_t examined = 0;
+            double rest = 0;
+            field.sampleNodes(frame, Vec3i(n.x(), n.y(), n.z()), {1, 1, 1}, nullptr, &rest);
+            const bool inside = isInside(rest, iso, field.inside());
+            if (!edgeRuns.moveEffect(n, inside, frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*moves[ci]), offsets, examined,
+                                     local.samples)
+                     .keeps)
+                continue;
+        }
         acc.setValue(candidates[ci], openvdb::Vec3f(moves[ci]->x, moves[ci]->y, moves[ci]->z));
         frontier.push_back(candidates[ci]);
         ++local.nodesMoved;
