@@ -112,8 +112,9 @@ Vec3d randomCentre(std::mt19937& rng) {
 }
 
 // Of `count` formulas made by `shape` from one random generator, how many DMC meshes closed and
-// in `pieces` pieces.
-int randomShapesInPieces(unsigned seed, int count, std::size_t pieces, const std::function<std::string(std::mt19937&)>& shape) {
+// in `pieces` pieces (each one that is not fails a check, unless `allMust` is false).
+int randomShapesInPieces(unsigned seed, int count, std::size_t pieces, const std::function<std::string(std::mt19937&)>& shape,
+                         bool allMust = true) {
     std::mt19937 rng(seed);
     int whole = 0;
     for (int trial = 0; trial < count; ++trial) {
@@ -121,7 +122,7 @@ int randomShapesInPieces(unsigned seed, int count, std::size_t pieces, const std
         const Mesh m = meshFormula(f, kBox, kH);
         INFO(f);
         requireClosed(m);
-        CHECK(countComponents(m) == pieces);
+        if (allMust) CHECK(countComponents(m) == pieces);
         whole += countComponents(m) == pieces;
     }
     return whole;
@@ -142,6 +143,18 @@ int randomShellsApart(unsigned seed, double width, int count) {
     return randomShapesInPieces(seed, count, 2, [&](std::mt19937& rng) {
         return "abs(sqrt(" + radius2(randomCentre(rng)) + ")-0.7)-" + num(width / 2);
     });
+}
+
+// Of `count` balls cut in two by a crack `width` wide at a random orientation through a random
+// point of the centre cell, how many come out as two pieces.
+int randomCracksApart(unsigned seed, double width, int count, bool allMust = true) {
+    return randomShapesInPieces(
+        seed, count, 2,
+        [&](std::mt19937& rng) {
+            const Vec3d n = randomUnit(rng), c = randomCentre(rng);
+            return "max(sqrt(" + radius2(c) + ")-0.8, " + num(width / 2) + "-abs(" + dotWith(n, c) + "))";
+        },
+        allMust);
 }
 
 } // namespace
@@ -575,6 +588,25 @@ TEST_CASE("a crack separates the two halves of a ball") {
     const std::string f = "max(sqrt(x^2+y^2+z^2)-0.8, 0.015-abs(0.48*x+0.6*y+0.64*z-0.013))";
     const Mesh dmc = meshFormula(f, kBox, kH);
     CHECK(countComponents(dmc) == 2);
+}
+
+TEST_CASE("cracks 1.2 to 2 cells wide, at random orientations, separate the two halves with sharp features on") {
+    // Marching cubes alone keeps these apart; the steps of DMC must not join them: a node beyond
+    // the rim flipped onto one half's rim edge, nodes bridged to it, or two nodes of the crack
+    // each moved into the half on its side, all made an edge across the crack with both ends
+    // inside (8 to 12 of 20 cracks 1 H wide were one piece). Every such move now keeps what the
+    // node's edges show, checked again where a neighbour moved in the same batch.
+    CHECK(randomCracksApart(909, 1.2 * kH, 8) == 8);
+    CHECK(randomCracksApart(910, 1.5 * kH, 8) == 8);
+    CHECK(randomCracksApart(911, 2.0 * kH, 8) == 8);
+}
+
+TEST_CASE("most cracks half a cell wide separate the two halves") {
+    // Known shortfall: about a quarter of random cracks 0.5 H wide (half of those 0.3 H, three
+    // quarters of those 0.2 H) still join the halves somewhere near the rim. This floor guards
+    // what the edge checks on the thin search's first phase bought (12 of these 20 come out
+    // apart; without the checks, 4 to 7 of 20 did).
+    CHECK(randomCracksApart(912, 0.5 * kH, 20, false) >= 10);
 }
 
 namespace {

@@ -1,5 +1,6 @@
 #include "vdbsurf/dmc/edge_runs.h"
 
+#include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/lattice/lattice.h"
 
 #include <cmath>
@@ -7,6 +8,9 @@
 namespace vdbsurf {
 
 using openvdb::Coord;
+
+NodeStates::NodeStates(const LatticeDeformation& deformation)
+    : offsets(*deformation.offsets), onSurface(*deformation.onSurface), insideOnSurface(*deformation.insideOnSurface) {}
 
 EdgeRuns::EdgeRuns(const Field& field, const Lattice& lattice, double iso, int steps)
     : mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()), mSteps(steps), mNodeLo(lattice.cellRange.min()),
@@ -65,8 +69,8 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
     return false;
 }
 
-EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec3d& to, OffsetAccessor& offsets,
-                                          std::uint64_t& examined, std::uint64_t& evaluated) const {
+EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
+                                          std::uint64_t& evaluated) const {
     MoveEffect effect;
     double around[27];
     mField.sampleNodes(mFrame, {c.x() - 1, c.y() - 1, c.z() - 1}, {3, 3, 3}, nullptr, around);
@@ -74,8 +78,8 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     auto at = [&](const Coord& d, bool& nbInside) {
         const Coord nb = c + d;
         openvdb::Vec3f off(0.0f);
-        const bool moved = offsets.probeValue(nb, off);
-        nbInside = moved != isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide);
+        nodes.offsets.probeValue(nb, off);
+        nbInside = nodes.inside(nb, isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide));
         return world(nb) + Vec3d(off.x(), off.y(), off.z());
     };
     auto step = [](int axis, int sign) { return Coord(axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0); };

@@ -16,7 +16,21 @@ namespace vdbsurf {
 
 struct Lattice;
 
+struct LatticeDeformation;
+
 using OffsetAccessor = openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>;
+
+// Where the nodes are now and on which side, read from a deformation by one thread: a node moved
+// by the thin search changed side, a node placed on a sharp feature has the side recorded for it.
+struct NodeStates {
+    explicit NodeStates(const LatticeDeformation& deformation);
+    bool inside(const openvdb::Coord& c, bool restInside) {
+        if (onSurface.isValueOn(c)) return insideOnSurface.isValueOn(c);
+        return offsets.isValueOn(c) != restInside;
+    }
+    OffsetAccessor offsets;
+    openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> onSurface, insideOnSurface;
+};
 
 class EdgeRuns {
 public:
@@ -38,15 +52,15 @@ public:
                            std::uint64_t& evaluated) const;
 
     // What moving node c (on side `inside`, not moved) to `to` (onto the other side) does to its
-    // six edges, the other nodes where `offsets` puts them.
+    // six edges, the other nodes where `nodes` puts them.
     struct MoveEffect {
         bool keeps = true;      // no edge hides a part it showed, no face turns ambiguous across a part
         std::size_t before = 0; // hidden runs on the six edges before the move
         std::size_t after = 0;  // and after (bulges that bent paths go around count as before)
         bool alone = true;      // no neighbour on c's side: c stands for a thin part itself
     };
-    MoveEffect moveEffect(const openvdb::Coord& c, bool inside, const Vec3d& to, OffsetAccessor& offsets,
-                          std::uint64_t& examined, std::uint64_t& evaluated) const;
+    MoveEffect moveEffect(const openvdb::Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
+                          std::uint64_t& evaluated) const;
 
     bool validNode(const openvdb::Coord& c) const {
         return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&

@@ -87,18 +87,18 @@ public:
     // corners lie on the other diagonal (marching cubes joins the outside corners there).
     // restAt(node) gives a node's value at its rest place.
     template <typename RestAt>
-    std::optional<Move> examine(const Edge& e, const RestAt& restAt, OffsetAccessor& offsets, std::uint64_t& examined,
+    std::optional<Move> examine(const Edge& e, const RestAt& restAt, NodeStates& nodes, std::uint64_t& examined,
                                 std::uint64_t& evaluated) const {
         const Coord a = e.node, b = e.other();
         openvdb::Vec3f offA(0.0f), offB(0.0f);
-        const bool movedA = offsets.probeValue(a, offA), movedB = offsets.probeValue(b, offB);
+        const bool movedA = nodes.offsets.probeValue(a, offA), movedB = nodes.offsets.probeValue(b, offB);
         if (movedA && movedB) return std::nullopt;
-        auto sideOf = [&](const Coord& c, bool moved) { return moved != isInside(restAt(c), mIso, mSide); };
-        const bool insideA = sideOf(a, movedA), insideB = sideOf(b, movedB);
+        auto sideOf = [&](const Coord& c) { return nodes.inside(c, isInside(restAt(c), mIso, mSide)); };
+        const bool insideA = sideOf(a), insideB = sideOf(b);
         if (e.diagonal()) {
             if (insideA || insideB) return std::nullopt;
             for (int w = 0; w < 2; ++w)
-                if (!sideOf(e.corner(w), offsets.isValueOn(e.corner(w)))) return std::nullopt;
+                if (!sideOf(e.corner(w))) return std::nullopt;
         }
         const Vec3d pa = world(a) + Vec3d(offA.x(), offA.y(), offA.z()), pb = world(b) + Vec3d(offB.x(), offB.y(), offB.z());
         int n = 0;
@@ -129,7 +129,7 @@ public:
                 const std::size_t own = e.diagonal() ? runs.size() - 1 : 0;
                 const Vec3d to = world(c) + Vec3d(off), far = fromA ? pb : pa;
                 const std::size_t ownAfter = e.diagonal() ? mRuns.hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
-                if (ownAfter > own || !improves(c, inside, to, own - ownAfter, offsets, examined, evaluated)) continue;
+                if (ownAfter > own || !improves(c, inside, to, own - ownAfter, nodes, examined, evaluated)) continue;
                 return Move{c, off, e};
             }
         }
@@ -140,9 +140,9 @@ private:
     // Does moving node c (on side `inside`, not moved) to `to` keep what its edges show, leave
     // its six edges, with the diagonal that asks (`gained` runs fewer there), hiding fewer runs in
     // all, and is c not alone on its side among its neighbours (then it is a thin part itself)?
-    bool improves(const Coord& c, bool inside, const Vec3d& to, std::size_t gained, OffsetAccessor& offsets, std::uint64_t& examined,
+    bool improves(const Coord& c, bool inside, const Vec3d& to, std::size_t gained, NodeStates& nodes, std::uint64_t& examined,
                   std::uint64_t& evaluated) const {
-        const EdgeRuns::MoveEffect effect = mRuns.moveEffect(c, inside, to, offsets, examined, evaluated);
+        const EdgeRuns::MoveEffect effect = mRuns.moveEffect(c, inside, to, nodes, examined, evaluated);
         return effect.keeps && !effect.alone && effect.after < effect.before + gained;
     }
 
@@ -161,7 +161,7 @@ std::vector<Move> examineActiveCells(const EdgeExaminer& examiner, const Field& 
     std::vector<std::vector<Move>> perLeaf(leaves.leafCount());
     std::vector<std::uint64_t> examined(leaves.leafCount(), 0), evaluated(leaves.leafCount(), 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount(), 4), [&](const tbb::blocked_range<std::size_t>& r) {
-        OffsetAccessor offsets(*deformation.offsets);
+        NodeStates nodes(deformation);
         std::array<double, kLeafNodeCount> vals;
         std::array<std::uint8_t, kLeafNodeCount> needed;
         std::vector<std::uint8_t> seen(std::size_t(kLeafNodeCount) * kSegmentKinds);
@@ -187,7 +187,7 @@ std::vector<Move> examineActiveCells(const EdgeExaminer& examiner, const Field& 
                         std::uint8_t& mark = seen[std::size_t(leafNodeIndex(l.x(), l.y(), l.z())) * kSegmentKinds + std::size_t(e.kind)];
                         if (mark) continue;
                         mark = 1;
-                        if (auto m = examiner.examine(e, restAt, offsets, examined[li], evaluated[li])) perLeaf[li].push_back(*m);
+                        if (auto m = examiner.examine(e, restAt, nodes, examined[li], evaluated[li])) perLeaf[li].push_back(*m);
                     }
             }
         }
@@ -227,9 +227,9 @@ std::vector<Move> examineAround(const EdgeExaminer& examiner, const std::vector<
     std::vector<std::optional<Move>> moves(edges.size());
     std::vector<std::uint64_t> examined(edges.size(), 0), evaluated(edges.size(), 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, edges.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
-        OffsetAccessor offsets(*deformation.offsets);
+        NodeStates nodes(deformation);
         for (std::size_t i = r.begin(); i < r.end(); ++i)
-            moves[i] = examiner.examine(edges[i], [&](const Coord& c) { return examiner.rest(c); }, offsets, examined[i],
+            moves[i] = examiner.examine(edges[i], [&](const Coord& c) { return examiner.rest(c); }, nodes, examined[i],
                                         evaluated[i]);
     });
     std::vector<Move> all;

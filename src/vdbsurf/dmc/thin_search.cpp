@@ -17,6 +17,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <optional>
 #include <tuple>
 
@@ -198,6 +199,26 @@ private:
 
 inline int local3(int x, int y, int z) { return (x + 1) + 3 * (y + 1) + 9 * (z + 1); }
 
+// Moves are proposed in parallel, each checked with the nodes as they were before the batch; they
+// are applied in node order, and a move next to one applied before it (`movedInBatch`) is
+// checked again: two nodes of a crack, each moving into the half on its side, would join the
+// halves by the edge between them.
+bool stillKeeps(const EdgeRuns& edgeRuns, const Field& field, const LatticeFrame& frame, double iso, const LatticeDeformation& deformation,
+                const Coord& n, const Vec3f& offset, const std::function<bool(const Coord&)>& movedInBatch, std::uint64_t& samples) {
+    bool nextToMoved = false;
+    for (int k = 0; k < 6 && !nextToMoved; ++k) {
+        const int s = k % 2 ? 1 : -1;
+        nextToMoved = movedInBatch(n.offsetBy(k / 2 == 0 ? s : 0, k / 2 == 1 ? s : 0, k / 2 == 2 ? s : 0));
+    }
+    if (!nextToMoved) return true;
+    NodeStates nodes(deformation);
+    std::uint64_t examined = 0;
+    double rest = 0;
+    field.sampleNodes(frame, Vec3i(n.x(), n.y(), n.z()), {1, 1, 1}, nullptr, &rest);
+    const Vec3d to = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(offset);
+    return edgeRuns.moveEffect(n, isInside(rest, iso, field.inside()), to, nodes, examined, samples).keeps;
+}
+
 } // namespace
 
 void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
@@ -223,7 +244,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
         Progress progress("thin search", candidates.size(), options.cancel);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
             openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> cells(*lattice.cells);
-            OffsetAccessor offsets(*deformation.offsets);
+            NodeStates nodes(deformation);
             std::array<double, 27> around;
             std::vector<Vec3d> found;
             for (std::size_t ci = r.begin(); ci < r.end(); ++ci) {
@@ -236,7 +257,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
                 // it would join the halves across the crack).
                 std::uint64_t examined = 0;
                 const bool inside = isInside(around[13], iso, field.inside());
-                if (moves[ci] && !edgeRuns.moveEffect(n, inside, frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*moves[ci]), offsets,
+                if (moves[ci] && !edgeRuns.moveEffect(n, inside, frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*moves[ci]), nodes,
                                                       examined, samples[ci]).keeps)
                     moves[ci].reset();
             }
@@ -253,21 +274,9 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
         // node order), check again (two nodes of a crack, each moving into the half on its side,
         // would join the halves by the edge between them).
         const Coord n = candidates[ci];
-        bool nextToMoved = false;
-        for (int k = 0; k < 6 && !nextToMoved; ++k)
-            nextToMoved = acc.isValueOn(n.offsetBy(k / 2 == 0 ? (k % 2 ? 1 : -1) : 0, k / 2 == 1 ? (k % 2 ? 1 : -1) : 0,
-                                                   k / 2 == 2 ? (k % 2 ? 1 : -1) : 0));
-        if (nextToMoved) {
-            OffsetAccessor offsets(*deformation.offsets);
-            std::uint64_t examined = 0;
-            double rest = 0;
-            field.sampleNodes(frame, Vec3i(n.x(), n.y(), n.z()), {1, 1, 1}, nullptr, &rest);
-            const bool inside = isInside(rest, iso, field.inside());
-            if (!edgeRuns.moveEffect(n, inside, frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*moves[ci]), offsets, examined,
-                                     local.samples)
-                     .keeps)
-                continue;
-        }
+        if (!stillKeeps(edgeRuns, field, frame, iso, deformation, n, *moves[ci], [&](const Coord& c) { return acc.isValueOn(c); },
+                        local.samples))
+            continue;
         acc.setValue(candidates[ci], openvdb::Vec3f(moves[ci]->x, moves[ci]->y, moves[ci]->z));
         frontier.push_back(candidates[ci]);
         ++local.nodesMoved;
@@ -341,6 +350,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     // Starts from the moved nodes and the corners of such cells, then repeats from the nodes
     // that moved, until nothing moves.
     tbb::enumerable_thread_specific<std::uint64_t> bridgeSamples(0);
+    std::uint64_t samplesAfter = 0;
     for (int round = 0; round < 16 && !frontier.empty(); ++round) {
         struct Bridge {
             Coord node;
@@ -349,7 +359,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         std::vector<std::vector<Bridge>> proposals(frontier.size());
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frontier.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
             openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> cells(*lattice.cells);
-            openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false> offsets(*deformation.offsets);
+            NodeStates nodes(deformation);
             std::vector<Vec3d> found;
             double block[125], around[27];
             std::uint64_t evaluated = 0, examined = 0;
@@ -361,16 +371,11 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 auto position = [&](int x, int y, int z, bool& moved) {
                     const Coord c = p.offsetBy(x, y, z);
                     openvdb::Vec3f off;
-                    moved = offsets.probeValue(c, off);
+                    moved = nodes.offsets.probeValue(c, off);
                     return frame.nodeWorld(Vec3i(c.x(), c.y(), c.z())) + Vec3d(off.x(), off.y(), off.z());
                 };
                 // Side of the node at offset (x, y, z) from p, where it is now.
-                auto insideAt = [&](int x, int y, int z) {
-                    bool moved = false;
-                    position(x, y, z, moved);
-                    const bool restInside = isInside(rest(x, y, z), iso, side);
-                    return moved ? !restInside : restInside;
-                };
+                auto insideAt = [&](int x, int y, int z) { return nodes.inside(p.offsetBy(x, y, z), isInside(rest(x, y, z), iso, side)); };
                 const bool pInside = insideAt(0, 0, 0);
                 bool pMoved = false;
                 const Vec3d pPos = position(0, 0, 0, pMoved);
@@ -402,7 +407,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                         if (dist >= bestDistance) return;
                         const Coord d = n - p;
                         const bool restInside = isInside(rest(d.x(), d.y(), d.z()), iso, side);
-                        if (!edgeRuns.moveEffect(n, restInside, to, offsets, examined, evaluated).keeps) return;
+                        if (!edgeRuns.moveEffect(n, restInside, to, nodes, examined, evaluated).keeps) return;
                         bestDistance = dist, best = Bridge{n, off};
                     };
                     std::vector<Vec3i> unmoved;
@@ -511,6 +516,9 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         for (std::size_t i = 0; i < all.size(); ++i) {
             if (i > 0 && all[i].node == all[i - 1].node) continue;
             if (acc.isValueOn(all[i].node)) continue;
+            if (!stillKeeps(edgeRuns, field, frame, iso, deformation, all[i].node, all[i].offset,
+                            [&](const Coord& c) { return std::binary_search(frontier.begin(), frontier.end(), c); }, samplesAfter))
+                continue;
             acc.setValue(all[i].node, openvdb::Vec3f(all[i].offset.x, all[i].offset.y, all[i].offset.z));
             frontier.push_back(all[i].node);
             if (movedOut) movedOut->emplace_back(all[i].node.x(), all[i].node.y(), all[i].node.z());
@@ -518,8 +526,10 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         }
     }
 
-    if (samplesOut)
+    if (samplesOut) {
+        *samplesOut += samplesAfter;
         for (std::uint64_t n : bridgeSamples) *samplesOut += n;
+    }
     return bridged;
 }
 
