@@ -602,11 +602,12 @@ TEST_CASE("cracks 1.2 to 2 cells wide, at random orientations, separate the two 
 }
 
 TEST_CASE("most cracks half a cell wide separate the two halves") {
-    // Known shortfall: about a quarter of random cracks 0.5 H wide (half of those 0.3 H, three
-    // quarters of those 0.2 H) still join the halves somewhere near the rim. This floor guards
-    // what the edge checks on the thin search's first phase bought (12 of these 20 come out
-    // apart; without the checks, 4 to 7 of 20 did).
-    CHECK(randomCracksApart(912, 0.5 * kH, 20, false) >= 10);
+    // Known shortfall: about one in seven random cracks 0.5 H wide (two in five of those 0.3 H,
+    // two in three of those 0.2 H) still join the halves somewhere near the rim. This floor
+    // guards what the edge checks bought: 15 of these 20 come out apart (12 when the hidden-edge
+    // phase also splits edges whose ends a bent path joins, 6 without the checks on the thin
+    // search's first phase).
+    CHECK(randomCracksApart(912, 0.5 * kH, 20, false) >= 14);
 }
 
 namespace {

@@ -68,13 +68,13 @@ public:
     }
     Vec3d world(const openvdb::Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
 
-private:
     // Is there a path from a to b on side `inside` that bows away from the segment by less than a
     // cell? Then the ends lie in one piece of their side here, and a run of the other side on the
     // segment between them is the other side's surface curving across it, not a part between
     // them (a crack between them crosses every such path).
     bool bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const;
 
+private:
     const Field& mField;
     const LatticeFrame& mFrame;
     double mIso;
