@@ -104,6 +104,15 @@ std::string rodFormula(const Vec3d& n, const Vec3d& c, double width) {
     return "max(sqrt(max(" + radius2(c) + "-" + dotWith(n, c) + "^2, 0))-" + num(width / 2) + ", sqrt(" + radius2(c) + ")-0.7)";
 }
 
+// A field meshed by DMC at spacing kH with default options, checked closed.
+Mesh dmcAtH(const Field& field, MeshReport& report) {
+    MeshRequest req;
+    req.voxelSize = kH;
+    Mesh m = meshField(field, req, report);
+    requireClosed(m);
+    return m;
+}
+
 // A random point of the centre cell.
 Vec3d randomCentre(std::mt19937& rng) {
     std::uniform_real_distribution<double> jitter(-0.5 * kH, 0.5 * kH);
@@ -560,11 +569,8 @@ TEST_CASE("a spherical shell 0.3 H thick keeps its inner and outer surfaces apar
     // Lattice edges and face diagonals from the cavity to the outside cross the sheet with both
     // ends outside; without the hidden-edge phase marching cubes joins the two sides there.
     const ExpressionField f("abs(sqrt((x-0.01)^2+(y+0.02)^2+(z-0.03)^2)-0.7)-0.015", kBox);
-    MeshRequest req;
-    req.voxelSize = kH;
     MeshReport report;
-    const Mesh dmc = meshField(f, req, report);
-    requireClosed(dmc);
+    const Mesh dmc = dmcAtH(f, report);
     CHECK(countComponents(dmc) == 2);
     CHECK(report.thinEdgesSplit > 0);
     CHECK(report.thinEdgesSplit <= report.thinNodesMoved);
@@ -599,6 +605,19 @@ TEST_CASE("cracks 1.2 to 2 cells wide, at random orientations, separate the two 
     CHECK(randomCracksApart(909, 1.2 * kH, 8) == 8);
     CHECK(randomCracksApart(910, 1.5 * kH, 8) == 8);
     CHECK(randomCracksApart(911, 2.0 * kH, 8) == 8);
+}
+
+TEST_CASE("a gap 0.3 H wide through a level-set ball leaves two halves and no bubble") {
+    // bench_thin's second gap: crack nodes bridged into the gap one at a time around a node of
+    // the half beside it left that node alone, an 8-triangle bubble (a move may no longer leave
+    // a neighbour of its side with no neighbour of its own side).
+    const Vec3d n(0.33696394958805831, 0.5789636504922826, 0.7424664221947459);
+    const Vec3d c(0.010181175227901004, 0.03974122597511974, -0.0091879030278651935);
+    auto gap = [&](const Vec3d& p) { return std::max(length(p - c) - 0.8, 0.015 - std::fabs(dot(n, p - c))); };
+    const GridField field(test::makeLevelSetFromDistance(gap, Box3{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}}, 0.02), "gap");
+    MeshReport report;
+    const Mesh dmc = dmcAtH(field, report);
+    CHECK(countComponents(dmc) == 2);
 }
 
 TEST_CASE("most cracks half a cell wide separate the two halves") {

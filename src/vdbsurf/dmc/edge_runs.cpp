@@ -103,6 +103,35 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         effect.before += was;
         effect.after += now;
     }
+    // Nor may the move leave a neighbour of c's side with no neighbour of its own side: a node
+    // standing alone for a thick part is a bubble (crack nodes bridged into the crack one by one
+    // around a node of the half beside it cut it off).
+    for (int k = 0; k < 6; ++k) {
+        const Coord d = step(k / 2, k % 2 ? 1 : -1);
+        if (!validNode(c + d)) continue;
+        bool nbInside = false;
+        at(d, nbInside);
+        if (nbInside != inside) continue;
+        bool company = false;
+        for (int j = 0; j < 6 && !company; ++j) {
+            const Coord e = d + step(j / 2, j % 2 ? 1 : -1);
+            if (e == Coord(0, 0, 0) || !validNode(c + e)) continue;
+            bool eInside = false;
+            if (std::abs(e.x()) <= 1 && std::abs(e.y()) <= 1 && std::abs(e.z()) <= 1) {
+                at(e, eInside);
+            } else {
+                double v = 0;
+                const Coord m = c + e;
+                mField.sampleNodes(mFrame, {m.x(), m.y(), m.z()}, {1, 1, 1}, nullptr, &v);
+                eInside = nodes.inside(m, isInside(v, mIso, mSide));
+            }
+            company = eInside == nbInside;
+        }
+        if (!company) {
+            effect.keeps = false;
+            return effect;
+        }
+    }
     // An inside node that moves out may make the faces around it ambiguous: marching cubes then
     // joins it to the outside corner across each such face, which must not hide a part (a move
     // out of one side of a thin shell must not join the shell's two sides), unless the two lie

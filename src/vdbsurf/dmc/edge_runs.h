@@ -32,6 +32,20 @@ struct NodeStates {
     openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> onSurface, insideOnSurface;
 };
 
+// Does `moved` hold a node whose move can change what moving c does (EdgeRuns::moveEffect): one
+// of the 26 around c, or two steps from it along an axis?
+template <typename Moved> bool movedNear(const openvdb::Coord& c, const Moved& moved) {
+    for (int z = -1; z <= 1; ++z)
+        for (int y = -1; y <= 1; ++y)
+            for (int x = -1; x <= 1; ++x)
+                if ((x || y || z) && moved(c.offsetBy(x, y, z))) return true;
+    for (int k = 0; k < 6; ++k) {
+        const int s = k % 2 ? 2 : -2;
+        if (moved(c.offsetBy(k / 2 == 0 ? s : 0, k / 2 == 1 ? s : 0, k / 2 == 2 ? s : 0))) return true;
+    }
+    return false;
+}
+
 class EdgeRuns {
 public:
     EdgeRuns(const Field& field, const Lattice& lattice, double iso, int steps);

@@ -266,10 +266,8 @@ void splitHiddenEdges(const Field& field, const Lattice& lattice, const ThinSear
         for (std::size_t i = 0; i < proposals.size(); ++i) {
             const Move& m = proposals[i];
             if (acc.isValueOn(m.node)) continue;
-            bool nextToMoved = false; // its counts assumed its neighbours stay
-            for (int k = 0; k < 6 && !nextToMoved; ++k)
-                nextToMoved = std::binary_search(moved.begin(), moved.end(), neighbour(m.node, k / 2, k % 2 ? 1 : -1));
-            if (nextToMoved) {
+            // Its checks assumed the nodes around it stay.
+            if (movedNear(m.node, [&](const Coord& c) { return std::binary_search(moved.begin(), moved.end(), c); })) {
                 deferred.push_back(m.edge);
                 continue;
             }

@@ -200,17 +200,12 @@ private:
 inline int local3(int x, int y, int z) { return (x + 1) + 3 * (y + 1) + 9 * (z + 1); }
 
 // Moves are proposed in parallel, each checked with the nodes as they were before the batch; they
-// are applied in node order, and a move next to one applied before it (`movedInBatch`) is
-// checked again: two nodes of a crack, each moving into the half on its side, would join the
+// are applied in node order, and a move near one applied before it (`movedInBatch`) is checked
+// again: two nodes of a crack, each moving into the half on its side, would join the
 // halves by the edge between them.
 bool stillKeeps(const EdgeRuns& edgeRuns, const Field& field, const LatticeFrame& frame, double iso, const LatticeDeformation& deformation,
                 const Coord& n, const Vec3f& offset, const std::function<bool(const Coord&)>& movedInBatch, std::uint64_t& samples) {
-    bool nextToMoved = false;
-    for (int k = 0; k < 6 && !nextToMoved; ++k) {
-        const int s = k % 2 ? 1 : -1;
-        nextToMoved = movedInBatch(n.offsetBy(k / 2 == 0 ? s : 0, k / 2 == 1 ? s : 0, k / 2 == 2 ? s : 0));
-    }
-    if (!nextToMoved) return true;
+    if (!movedNear(n, movedInBatch)) return true;
     NodeStates nodes(deformation);
     std::uint64_t examined = 0;
     double rest = 0;
