@@ -265,9 +265,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     for (std::size_t ci = 0; ci < candidates.size(); ++ci) {
         local.samples += samples[ci];
         if (!moves[ci]) continue;
-        // Each move was checked with every node at rest: where a neighbour has moved already (in
-        // node order), check again (two nodes of a crack, each moving into the half on its side,
-        // would join the halves by the edge between them).
+        // Each move was checked with every node at rest (see stillKeeps).
         const Coord n = candidates[ci];
         if (!stillKeeps(edgeRuns, field, frame, iso, deformation, n, *moves[ci], [&](const Coord& c) { return acc.isValueOn(c); },
                         local.samples))
