@@ -8,6 +8,9 @@
 // cells. Cells that already have a corner on the other side are left alone, so a smooth thick
 // surface is meshed exactly as plain marching cubes meshes it. Every node decides from the
 // undeformed lattice only, so the search runs in parallel and does not depend on thread order.
+// A move must keep what the node's edges show (edge_runs.h); the moves are applied in node order
+// and checked again where a node near them moved before (two nodes of a crack must not move into
+// the two halves beside them at once), which is order-free too.
 //
 // Sampling: a body-centred cubic pattern of spacing a = h/m with m = ceil(k·√5/2) per axis,
 // aligned so that the samples of all Ω together form one global lattice. Its covering radius
