@@ -53,11 +53,11 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
     const Vec3d w = d / len;
     const Vec3d u = normalized(cross(w, std::fabs(w.x) < 0.6 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0)));
     const Vec3d v = cross(w, u);
-    for (const double bow : {0.1, 0.2, 0.35, 0.5, 0.75})
+    for (const double bow : {0.1, 0.2, 0.35, 0.5, 0.75}) {
+        const int n = int(std::ceil((len + 2 * bow * mFrame.h) * mSteps / mFrame.h)) + 1;
         for (int k = 0; k < 8; ++k) {
             const double angle = k * (M_PI / 4);
             const Vec3d dir = u * std::cos(angle) + v * std::sin(angle);
-            const int n = int(std::ceil((len + 2 * bow * mFrame.h) * mSteps / mFrame.h)) + 1;
             bool joined = true;
             for (int i = 1; i < n && joined; ++i) {
                 const double t = double(i) / n;
@@ -66,6 +66,7 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
             }
             if (joined) return true;
         }
+    }
     return false;
 }
 
@@ -82,9 +83,8 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         nbInside = nodes.inside(nb, isInside(around[(d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1)], mIso, mSide));
         return world(nb) + Vec3d(off.x(), off.y(), off.z());
     };
-    auto step = [](int axis, int sign) { return Coord(axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0); };
     for (int k = 0; k < 6; ++k) {
-        const Coord d = step(k / 2, k % 2 ? 1 : -1);
+        const Coord d = axisStep(k / 2, k % 2 ? 1 : -1);
         if (!validNode(c + d)) continue;
         bool nbInside = false;
         const Vec3d p = at(d, nbInside);
@@ -107,14 +107,14 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     // standing alone for a thick part is a bubble (crack nodes bridged into the crack one by one
     // around a node of the half beside it cut it off).
     for (int k = 0; k < 6; ++k) {
-        const Coord d = step(k / 2, k % 2 ? 1 : -1);
+        const Coord d = axisStep(k / 2, k % 2 ? 1 : -1);
         if (!validNode(c + d)) continue;
         bool nbInside = false;
         at(d, nbInside);
         if (nbInside != inside) continue;
         bool company = false;
         for (int j = 0; j < 6 && !company; ++j) {
-            const Coord e = d + step(j / 2, j % 2 ? 1 : -1);
+            const Coord e = d + axisStep(j / 2, j % 2 ? 1 : -1);
             if (e == Coord(0, 0, 0) || !validNode(c + e)) continue;
             bool eInside = false;
             if (std::abs(e.x()) <= 1 && std::abs(e.y()) <= 1 && std::abs(e.z()) <= 1) {
@@ -141,7 +141,7 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         for (int v = u + 1; v < 3; ++v)
             for (int su = -1; su <= 1; su += 2)
                 for (int sv = -1; sv <= 1; sv += 2) {
-                    const Coord du = step(u, su), dv = step(v, sv);
+                    const Coord du = axisStep(u, su), dv = axisStep(v, sv);
                     if (!validNode(c + du) || !validNode(c + dv) || !validNode(c + du + dv)) continue;
                     bool inU = false, inV = false, inFar = false;
                     at(du, inU);

@@ -32,6 +32,11 @@ struct NodeStates {
     openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> onSurface, insideOnSurface;
 };
 
+// One lattice step along `axis` (0-2), towards `sign` (-1 or 1; 2 or -2 for two steps).
+inline openvdb::Coord axisStep(int axis, int sign) {
+    return openvdb::Coord(axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0);
+}
+
 // Does `moved` hold a node whose move can change what moving c does (EdgeRuns::moveEffect): one
 // of the 26 around c, or two steps from it along an axis?
 template <typename Moved> bool movedNear(const openvdb::Coord& c, const Moved& moved) {
@@ -39,10 +44,8 @@ template <typename Moved> bool movedNear(const openvdb::Coord& c, const Moved& m
         for (int y = -1; y <= 1; ++y)
             for (int x = -1; x <= 1; ++x)
                 if ((x || y || z) && moved(c.offsetBy(x, y, z))) return true;
-    for (int k = 0; k < 6; ++k) {
-        const int s = k % 2 ? 2 : -2;
-        if (moved(c.offsetBy(k / 2 == 0 ? s : 0, k / 2 == 1 ? s : 0, k / 2 == 2 ? s : 0))) return true;
-    }
+    for (int k = 0; k < 6; ++k)
+        if (moved(c + axisStep(k / 2, k % 2 ? 2 : -2))) return true;
     return false;
 }
 

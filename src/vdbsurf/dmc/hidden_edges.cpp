@@ -46,9 +46,7 @@ struct Edge {
 };
 
 // The node one step from c along axis (0-2), towards sign (-1 or 1).
-Coord neighbour(const Coord& c, int axis, int sign) {
-    return c.offsetBy(axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0);
-}
+Coord neighbour(const Coord& c, int axis, int sign) { return c + axisStep(axis, sign); }
 
 // The segment between two nodes one edge or one face diagonal apart.
 Edge segment(const Coord& p, const Coord& q) {
@@ -150,7 +148,7 @@ private:
         return effect.keeps && !effect.alone && effect.after < effect.before + gained;
     }
 
-    Vec3d world(const Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
+    Vec3d world(const Coord& c) const { return mRuns.world(c); }
     EdgeRuns mRuns;
     const Field& mField;
     const LatticeFrame& mFrame;
