@@ -169,6 +169,7 @@ void runMesh(const MeshOptions& o) {
                            {"sharp_corner_cells", rep.sharpCornerCells},
                            {"sharp_rejected", rep.sharpRejected},
                            {"nodes_on_edges", rep.nodesOnEdges},
+                           {"nodes_on_edges_second_round", rep.nodesAlongEdges},
                            {"nodes_on_corners", rep.nodesOnCorners},
                            {"nodes_flipped", rep.nodesFlipped},
                            {"welded_vertices", rep.weldedVertices},

@@ -105,15 +105,12 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     }
     // Nor may the move leave a neighbour of c's side with no neighbour of its own side: a node
     // standing alone for a thick part is a bubble (crack nodes bridged into the crack one by one
-    // around a node of the half beside it cut it off).
-    for (int k = 0; k < 6; ++k) {
-        const Coord d = axisStep(k / 2, k % 2 ? 1 : -1);
-        if (!validNode(c + d)) continue;
-        bool nbInside = false;
-        at(d, nbInside);
-        if (nbInside != inside) continue;
-        bool company = false;
-        for (int j = 0; j < 6 && !company; ++j) {
+    // around a node of the half beside it cut it off). Nor may it take from a neighbour placed on
+    // a sharp feature its last edge to the other side: the feature's crossings sit on those
+    // edges, and with none left it vanishes from the mesh (bridging moved the one outside node
+    // beside a notch's concave corner into the solid: the mesh cut the corner off by a cell).
+    auto neighbourOn = [&](const Coord& d, bool side) { // does c's neighbour d have one (not c) on `side`?
+        for (int j = 0; j < 6; ++j) {
             const Coord e = d + axisStep(j / 2, j % 2 ? 1 : -1);
             if (e == Coord(0, 0, 0) || !validNode(c + e)) continue;
             bool eInside = false;
@@ -125,9 +122,18 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
                 mField.sampleNodes(mFrame, {m.x(), m.y(), m.z()}, {1, 1, 1}, nullptr, &v);
                 eInside = nodes.inside(m, isInside(v, mIso, mSide));
             }
-            company = eInside == nbInside;
+            if (eInside == side) return true;
         }
-        if (!company) {
+        return false;
+    };
+    for (int k = 0; k < 6; ++k) {
+        const Coord d = axisStep(k / 2, k % 2 ? 1 : -1);
+        if (!validNode(c + d)) continue;
+        bool nbInside = false;
+        at(d, nbInside);
+        const bool keepsCompany = nbInside == inside ? neighbourOn(d, nbInside)
+                                                     : !nodes.onSurface.isValueOn(c + d) || neighbourOn(d, inside);
+        if (!keepsCompany) {
             effect.keeps = false;
             return effect;
         }

@@ -431,6 +431,7 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
             // Vertices already on a node (a data node at the iso value): (vertex, node), by vertex.
             std::vector<std::pair<std::uint32_t, Coord>> atDataNode(w.nodeVertices.begin(), w.nodeVertices.end());
             std::sort(atDataNode.begin(), atDataNode.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+            std::vector<std::pair<std::uint32_t, Coord>> toFirstEnd; // data-node vertices moved to the edge's first end
             const MaskLeaf& leaf = im.leafManager.leaf(li);
             std::size_t rank = 0;
             for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
@@ -442,25 +443,40 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
                 for (int e = 0; e < 12; ++e) {
                     if (!(owned & (1u << e))) continue;
                     const std::uint32_t v = local++;
-                    const auto data = std::lower_bound(atDataNode.begin(), atDataNode.end(), v,
-                                                       [](const auto& x, std::uint32_t u) { return x.first < u; });
-                    if (data != atDataNode.end() && data->first == v) {
-                        // At a data node: it stays there, but follows the node onto a feature.
-                        if (onSurface.isValueOn(data->second)) {
-                            w.vertices[v] = placed(data->second);
-                            ++movedPerLeaf[li];
-                        }
-                        continue;
-                    }
                     const Vec3i eo = cubeEdgeOrigin(e);
                     const Coord a = cell.offsetBy(eo.x, eo.y, eo.z);
                     Coord b = a;
                     b[cubeEdgeAxis(e)] += 1;
+                    const auto data = std::lower_bound(atDataNode.begin(), atDataNode.end(), v,
+                                                       [](const auto& x, std::uint32_t u) { return x.first < u; });
+                    if (data != atDataNode.end() && data->first == v) {
+                        // At a data node: it stays there, but follows the node onto a feature; and
+                        // where the edge's first end is on a feature, it goes there, as in a
+                        // surface built on the deformed lattice (both ends hold the iso value
+                        // then, and the first end carries the crossing).
+                        if (onSurface.isValueOn(data->second)) {
+                            w.vertices[v] = placed(data->second);
+                            ++movedPerLeaf[li];
+                        } else if (data->second == b && onSurface.isValueOn(a)) {
+                            w.vertices[v] = placed(a);
+                            toFirstEnd.emplace_back(v, a);
+                            ++movedPerLeaf[li];
+                        }
+                        continue;
+                    }
                     const Coord* n = onSurface.isValueOn(a) ? &a : (onSurface.isValueOn(b) ? &b : nullptr);
                     if (!n) continue;
                     w.vertices[v] = placed(*n);
                     w.nodeVertices.emplace_back(v, *n);
                     ++movedPerLeaf[li];
+                }
+            }
+            if (!toFirstEnd.empty()) {
+                std::sort(toFirstEnd.begin(), toFirstEnd.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+                for (auto& nv : w.nodeVertices) {
+                    const auto it = std::lower_bound(toFirstEnd.begin(), toFirstEnd.end(), nv.first,
+                                                     [](const auto& x, std::uint32_t u) { return x.first < u; });
+                    if (it != toFirstEnd.end() && it->first == nv.first) nv.second = it->second;
                 }
             }
             std::sort(w.nodeVertices.begin(), w.nodeVertices.end(),

@@ -119,6 +119,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.sharpCornerCells = ss.cornerCells;
         report.sharpRejected = ss.rejected;
         report.nodesOnEdges = ss.nodesOnEdges;
+        report.nodesAlongEdges = ss.nodesAlongEdges;
         report.nodesOnCorners = ss.nodesOnCorners;
         report.nodesFlipped = ss.flipped;
         report.secondsSharp = ss.seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();

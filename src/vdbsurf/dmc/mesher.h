@@ -52,6 +52,7 @@ struct MeshReport {
     std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;
     std::uint64_t thinEdgesSplit = 0; // of the nodes moved, those an edge or face diagonal hid a part from
     std::uint64_t sharpEdgeCells = 0, sharpCornerCells = 0, sharpRejected = 0, nodesOnEdges = 0, nodesOnCorners = 0;
+    std::uint64_t nodesAlongEdges = 0; // of nodesOnEdges, placed between the cells' choices (second round)
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
     std::uint64_t nodesFlipped = 0; // sharp-feature nodes that changed side onto a tip (cases changed around them)
     double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0;

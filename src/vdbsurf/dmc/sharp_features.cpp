@@ -49,12 +49,19 @@ constexpr double kMaxFaceBend = 0.1;
 // plane that defined the feature means curvature, not a feature.
 constexpr double kFaceNormalAgreement = 0.95;
 
+// A cell whose crossings lie on more planes than this holds no pair of features.
+constexpr int kMaxPlanes = 4;
+// A node placed on an edge's line confirms it for another cell when it lies this close (in
+// cells): the lines of one straight edge seen from two cells agree far closer than this.
+constexpr double kOnConfirmedLine = 0.1;
+
 struct Proposal {
     Coord node;
     int kind = 0; // 0 corner, 1 edge: corners win
     double distance = 0;
     Coord cell;
     Vec3d point;
+    Vec3d direction, outward; // an edge's line and its faces' summed normals (second round)
     bool inside = false; // the node's side before it moves
     bool operator<(const Proposal& o) const {
         return std::tie(node, kind, distance, cell) < std::tie(o.node, o.kind, o.distance, o.cell);
@@ -80,6 +87,27 @@ Coord nearestNode(const LatticeFrame& frame, const Vec3d& p) {
     return Coord(int(std::floor(q.x + 0.5)), int(std::floor(q.y + 0.5)), int(std::floor(q.z + 0.5)));
 }
 
+// The point of the line (p + t·dir, dir a unit vector) closest to `rest` among those in rest's
+// cell Ω (taken a hair inside, as offsets must be), if the line crosses Ω.
+bool closestOnLineInOmega(const Vec3d& p, const Vec3d& dir, const Vec3d& rest, double h, Vec3d& out) {
+    const double inner = 0.5 * h * (1 - 1e-5);
+    double lo = -INFINITY, hi = INFINITY;
+    for (std::size_t i = 0; i < 3; ++i) {
+        const double o = p[i] - rest[i], d = dir[i];
+        if (std::fabs(d) < 1e-12) {
+            if (std::fabs(o) > inner) return false;
+            continue;
+        }
+        double t0 = (-inner - o) / d, t1 = (inner - o) / d;
+        if (t0 > t1) std::swap(t0, t1);
+        lo = std::max(lo, t0);
+        hi = std::min(hi, t1);
+    }
+    if (!(lo <= hi)) return false;
+    out = p + dir * std::clamp(dot(dir, rest - p), lo, hi);
+    return true;
+}
+
 bool isCornerOf(const Coord& node, const Coord& cell) {
     const Coord d = node - cell;
     return d.x() >= 0 && d.x() <= 1 && d.y() >= 0 && d.y() <= 1 && d.z() >= 0 && d.z() <= 1;
@@ -99,7 +127,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     const Inside side = field.inside();
 
     struct Local {
-        std::vector<Proposal> proposals;
+        std::vector<Proposal> proposals, alongEdges;
         std::uint64_t edgeCells = 0, cornerCells = 0, rejected = 0;
         Vec3d c[12], n[12]; // one cell's crossings and normals (here: not cleared for every cell)
     };
@@ -164,54 +192,48 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             ++local.rejected;
             return;
         }
-        const Vec3d edgeDir = normalized(cross(n[a], n[b]));
-        int third = -1;
-        double phi = options.cornerThreshold;
-        for (int i = 0; i < count; ++i) {
-            if (i == a || i == b) continue;
-            const double d = std::fabs(dot(n[i], edgeDir));
-            if (d > phi) phi = d, third = i;
-        }
-        auto normalsCluster = [&](std::initializer_list<int> planes) {
-            for (int i = 0; i < count; ++i) {
-                bool agrees = false;
-                for (int k : planes) agrees = agrees || dot(n[i], n[k]) >= kFaceNormalAgreement;
-                if (!agrees) return false;
-            }
-            return true;
+        auto insideAt = [&](const Coord& node) {
+            const Coord d = node - cc.cell;
+            return ((cc.config >> (d.x() + 2 * d.y() + 4 * d.z())) & 1u) != 0;
         };
-        if (!(third >= 0 ? normalsCluster({a, b, third}) : normalsCluster({a, b}))) {
-            ++local.rejected;
-            return;
-        }
-        Proposal p;
-        p.cell = cc.cell;
-        if (third >= 0) {
+        // A corner where the planes of crossings i, j, k meet, for the cell corner nearest it.
+        auto proposeCorner = [&](int i, int j, int k) {
             ++local.cornerCells;
-            const Vec3d planes[3] = {n[a], n[b], n[third]};
-            const double rhs[3] = {dot(n[a], c[a]), dot(n[b], c[b]), dot(n[third], c[third])};
+            const Vec3d planes[3] = {n[i], n[j], n[k]};
+            const double rhs[3] = {dot(n[i], c[i]), dot(n[j], c[j]), dot(n[k], c[k])};
             Vec3d corner;
             if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner) ||
-                !facesFlat(corner, {c[a], c[b], c[third]}) || !solidBehind(corner, n[a] + n[b] + n[third])) {
+                !facesFlat(corner, {c[i], c[j], c[k]}) || !solidBehind(corner, n[i] + n[j] + n[k])) {
                 ++local.rejected;
-                return;
+                return false;
             }
+            Proposal p;
+            p.cell = cc.cell;
             p.kind = 0;
             p.node = nearestNode(frame, corner);
             p.point = corner;
             p.distance = length(corner - frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z())));
-        } else {
+            p.inside = insideAt(p.node);
+            local.proposals.push_back(p);
+            return true;
+        };
+        // The edge where the planes of crossings i and j meet, placed along the line at `along`
+        // (a point whose projection fixes where on the line the cell is): the cell corner whose
+        // projection onto the line stays in its Ω and is nearest; the other corners whose Ω the
+        // line crosses are candidates for the second round.
+        auto proposeEdge = [&](int i, int j, const Vec3d& along) {
             ++local.edgeCells;
-            Vec3d mean;
-            for (int i = 0; i < count; ++i) mean += c[i];
-            mean = mean / double(count);
-            const Vec3d planes[3] = {n[a], n[b], edgeDir};
-            const double rhs[3] = {dot(n[a], c[a]), dot(n[b], c[b]), dot(edgeDir, mean)};
+            const Vec3d edgeDir = normalized(cross(n[i], n[j]));
+            const Vec3d planes[3] = {n[i], n[j], edgeDir};
+            const double rhs[3] = {dot(n[i], c[i]), dot(n[j], c[j]), dot(edgeDir, along)};
             Vec3d onLine;
             if (!intersectPlanes(planes, rhs, onLine)) {
                 ++local.rejected;
-                return;
+                return false;
             }
+            Proposal p;
+            p.cell = cc.cell;
+            p.kind = 1;
             double best = INFINITY;
             for (int k = 0; k < 8; ++k) {
                 const Coord node = cc.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
@@ -224,21 +246,108 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 p.point = q;
                 p.distance = dist;
             }
-            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[a], c[b]}) || !solidBehind(p.point, n[a] + n[b])) {
+            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[i], c[j]}) || !solidBehind(p.point, n[i] + n[j])) {
                 ++local.rejected;
-                return;
+                return false;
             }
-            p.kind = 1;
+            p.inside = insideAt(p.node);
+            local.proposals.push_back(p);
+            for (int k = 0; k < 8; ++k) {
+                const Coord node = cc.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+                if (node == p.node) continue;
+                const Vec3d rest = frame.nodeWorld(Vec3i(node.x(), node.y(), node.z()));
+                Vec3d q;
+                if (!closestOnLineInOmega(onLine, edgeDir, rest, h, q)) continue;
+                Proposal e = p;
+                e.node = node;
+                e.point = q;
+                e.distance = length(q - rest);
+                e.inside = (cc.config >> k) & 1u;
+                e.direction = edgeDir;
+                e.outward = n[i] + n[j];
+                local.alongEdges.push_back(e);
+            }
+            return true;
+        };
+
+        const Vec3d edgeDir = normalized(cross(n[a], n[b]));
+        int third = -1;
+        double phi = options.cornerThreshold;
+        for (int i = 0; i < count; ++i) {
+            if (i == a || i == b) continue;
+            const double d = std::fabs(dot(n[i], edgeDir));
+            if (d > phi) phi = d, third = i;
         }
-        const Coord d = p.node - cc.cell;
-        p.inside = (cc.config >> (d.x() + 2 * d.y() + 4 * d.z())) & 1u;
-        local.proposals.push_back(p);
+        // Every crossing must lie on the plane of a defining crossing: its normal agrees with that
+        // plane's, and it lies on it within kMaxFaceBend. Normals alone do not tell two parallel
+        // faces apart (a notch or a step less than a cell deep: the notch's floor and the face it
+        // is cut into), and planes mixed across them meet at a point of neither feature.
+        bool normalsAgree = true, onPlanes = true;
+        for (int i = 0; i < count; ++i) {
+            bool agrees = false, on = false;
+            for (int k : {a, b, third}) {
+                if (k < 0 || dot(n[i], n[k]) < kFaceNormalAgreement) continue;
+                agrees = true;
+                on = on || std::fabs(dot(n[k], c[i] - c[k])) <= kMaxFaceBend * h;
+            }
+            normalsAgree = normalsAgree && agrees;
+            onPlanes = onPlanes && on;
+        }
+        if (!normalsAgree) {
+            ++local.rejected;
+            return;
+        }
+        // Two features in one cell (a step or a notch less than a cell deep) show three or four
+        // planes, one of them met by two crossings or more; more planes, or each crossing on a
+        // plane of its own, is a curved or noisy surface, where the one proposal below stands.
+        int plane[12], rep[12], planes = 0;
+        if (!onPlanes) {
+            for (int i = 0; i < count; ++i) {
+                plane[i] = -1;
+                for (int k = 0; k < planes && plane[i] < 0; ++k)
+                    if (dot(n[i], n[rep[k]]) >= kFaceNormalAgreement && std::fabs(dot(n[rep[k]], c[i] - c[rep[k]])) <= kMaxFaceBend * h)
+                        plane[i] = k;
+                if (plane[i] < 0) rep[planes] = i, plane[i] = planes++;
+            }
+        }
+        Vec3d mean;
+        for (int i = 0; i < count; ++i) mean += c[i];
+        const bool proposed = third >= 0 ? proposeCorner(a, b, third) : proposeEdge(a, b, mean / double(count));
+        if (!proposed || onPlanes || planes > kMaxPlanes || planes == count) return;
+        // Then every other corner three of the planes make is proposed (or, if none, every edge
+        // two make): where the proposal above passed, the cell holds a true feature and its
+        // planes are worth the field checks.
+        auto meets = [&](int i, int j) { // an edge's two faces
+            const Vec3d x = cross(n[i], n[j]);
+            return dot(n[i], n[j]) < options.edgeThreshold && dot(x, x) >= kMinSine * kMinSine;
+        };
+        bool anyCorner = false;
+        for (int x = 0; x < planes; ++x)
+            for (int y = x + 1; y < planes; ++y)
+                for (int z = y + 1; z < planes; ++z) {
+                    const int i = rep[x], j = rep[y], k = rep[z];
+                    if (!meets(i, j) || !meets(i, k) || !meets(j, k)) continue;
+                    if (std::fabs(dot(n[k], normalized(cross(n[i], n[j])))) <= options.cornerThreshold) continue;
+                    anyCorner = proposeCorner(i, j, k) || anyCorner;
+                }
+        if (anyCorner) return;
+        for (int x = 0; x < planes; ++x)
+            for (int y = x + 1; y < planes; ++y) {
+                const int i = rep[x], j = rep[y];
+                if (!meets(i, j)) continue;
+                Vec3d mean;
+                int m = 0;
+                for (int u = 0; u < count; ++u)
+                    if (plane[u] == x || plane[u] == y) mean += c[u], ++m;
+                proposeEdge(i, j, mean / double(m));
+            }
     }, /*onlySharpCandidates=*/true);
 
     SharpStats out;
-    std::vector<Proposal> all;
+    std::vector<Proposal> all, along;
     for (Local& l : locals) {
         all.insert(all.end(), l.proposals.begin(), l.proposals.end());
+        along.insert(along.end(), l.alongEdges.begin(), l.alongEdges.end());
         out.edgeCells += l.edgeCells;
         out.cornerCells += l.cornerCells;
         out.rejected += l.rejected;
@@ -249,32 +358,45 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     all.erase(std::unique(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), all.end());
     std::stable_sort(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.kind < y.kind; });
 
-    openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface);
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
     // The field's side at each proposal's six neighbours does not depend on the order below:
     // sampled first, in parallel (bit k: neighbour k of kNeighbours is inside).
     constexpr int kNeighbours[6] = {4, 10, 12, 14, 16, 22}; // in the 3^3 block around the node
-    std::vector<std::uint8_t> insideNeighbours(all.size(), 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, all.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
-        double around[27];
-        for (std::size_t i = r.begin(); i < r.end(); ++i) {
-            const Coord& n = all[i].node;
-            field.sampleNodes(frame, Vec3i(n.x() - 1, n.y() - 1, n.z() - 1), {3, 3, 3}, nullptr, around);
-            for (int j = 0; j < 6; ++j)
-                if (isInside(around[kNeighbours[j]], iso, side)) insideNeighbours[i] |= std::uint8_t(1u << j);
-        }
-    });
-    if (options.cancel) options.cancel->check();
-    std::vector<Vec3i> flipped;
-    for (std::size_t i = 0; i < all.size(); ++i) {
-        const Proposal& p = all[i];
+    auto sampleNeighbours = [&](const std::vector<Proposal>& proposals) {
+        std::vector<std::uint8_t> bits(proposals.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+            double around[27];
+            for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                const Coord& n = proposals[i].node;
+                field.sampleNodes(frame, Vec3i(n.x() - 1, n.y() - 1, n.z() - 1), {3, 3, 3}, nullptr, around);
+                for (int j = 0; j < 6; ++j)
+                    if (isInside(around[kNeighbours[j]], iso, side)) bits[i] |= std::uint8_t(1u << j);
+            }
+        });
+        if (options.cancel) options.cancel->check();
+        return bits;
+    };
+    auto place = [&](const Proposal& p, bool inside) {
+        openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
+        const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
+        const Vec3f off(p.point - rest);
+        offsets.setValue(p.node, openvdb::Vec3f(off.x, off.y, off.z));
+        deformation.onSurface->setValueOn(p.node);
+        if (inside) deformation.insideOnSurface->setValueOn(p.node);
+        (p.kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) += 1;
+    };
+    // How many of p's six neighbours lie on the other side now (placed nodes by the side they
+    // keep, moved nodes on the side they moved to), and whether one of them already sits on a
+    // feature across the edge between them: that edge's one vertex cannot be at both.
+    auto neighbourSides = [&](const Proposal& p, std::uint8_t insideBits, bool& sharesCrossing) {
+        openvdb::tree::ValueAccessor<const openvdb::Vec3STree> offsets(*deformation.offsets);
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree> onSurface(*deformation.onSurface);
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
         int otherSide = 0;
-        bool sharesCrossing = false; // with a node already on a feature: the edge's one vertex can't be at both
+        sharesCrossing = false;
         for (int j = 0; j < 6; ++j) {
             const int k = kNeighbours[j];
             const Coord nb = p.node.offsetBy(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
-            bool inside = (insideNeighbours[i] >> j) & 1u;
+            bool inside = (insideBits >> j) & 1u;
             if (onSurface.isValueOn(nb)) {
                 inside = insideOnSurface.isValueOn(nb);
                 sharesCrossing = sharesCrossing || inside != p.inside;
@@ -283,6 +405,16 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             }
             otherSide += inside != p.inside;
         }
+        return otherSide;
+    };
+
+    const std::vector<std::uint8_t> insideNeighbours = sampleNeighbours(all);
+    std::vector<Vec3i> flipped;
+    std::vector<Proposal> placedFirst; // in node order
+    for (std::size_t i = 0; i < all.size(); ++i) {
+        const Proposal& p = all[i];
+        bool sharesCrossing = false;
+        const int otherSide = neighbourSides(p, insideNeighbours[i], sharesCrossing);
         if (otherSide == 6 || sharesCrossing) {
             ++out.rejected;
             continue;
@@ -291,14 +423,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // is, it would change nothing. It changes side instead (the feature's tip is a thin part
         // of the other side) and is joined to that side by bridging below.
         const bool flip = otherSide == 0;
-        const bool inside = flip ? !p.inside : p.inside;
-        const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
-        const Vec3f off(p.point - rest);
-        offsets.setValue(p.node, openvdb::Vec3f(off.x, off.y, off.z));
-        onSurface.setValueOn(p.node);
-        if (inside) insideOnSurface.setValueOn(p.node);
+        place(p, flip ? !p.inside : p.inside);
+        placedFirst.push_back(p);
         if (flip) flipped.emplace_back(p.node.x(), p.node.y(), p.node.z());
-        (p.kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) += 1;
     }
     if (!flipped.empty()) {
         ThinSearchOptions to;
@@ -311,6 +438,64 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
         });
         out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
+    }
+
+    // Second round, along edges. One node a cell leaves gaps where an edge runs between nodes
+    // that no cell chose (a line through a row of cells picks the same few nodes from each), and
+    // the mesh cuts across the edge there by up to half a cell — most on concave edges, where the
+    // solid's 270° leaves fewer cells whose crossings show both faces. Every other node whose Ω
+    // the edge's line crosses moves onto it now, if another cell confirms the line (a node placed
+    // in the first round from another cell, next to this one, lies on it: on curved surfaces the
+    // tangent planes of neighbouring cells meet on different lines, and following each one's
+    // line off its cell would only add false edges), the node still stands where it did (not
+    // placed, not moved), has an edge to the other side (it keeps its side: no case changes)
+    // and shares no crossing with a node placed across it. Only the first round flips nodes.
+    std::sort(placedFirst.begin(), placedFirst.end(), [](const Proposal& x, const Proposal& y) { return x.node < y.node; });
+    std::vector<std::uint8_t> keep(along.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        openvdb::tree::ValueAccessor<const openvdb::Vec3STree> offsets(*deformation.offsets);
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree> onSurface(*deformation.onSurface);
+        auto confirmed = [&](const Proposal& e) {
+            for (int z = -1; z <= 1; ++z)
+                for (int y = -1; y <= 1; ++y)
+                    for (int x = -1; x <= 1; ++x) {
+                        const Coord nb = e.node.offsetBy(x, y, z);
+                        if (!onSurface.isValueOn(nb)) continue;
+                        const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
+                                                         [](const Proposal& p, const Coord& c) { return p.node < c; });
+                        if (it == placedFirst.end() || it->node != nb || it->cell == e.cell) continue;
+                        const Vec3d d = it->point - e.point;
+                        if (length(d - e.direction * dot(d, e.direction)) <= kOnConfirmedLine * h) return true;
+                    }
+            return false;
+        };
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+            const Proposal& e = along[i];
+            keep[i] = !offsets.isValueOn(e.node) && !onSurface.isValueOn(e.node) && confirmed(e);
+        }
+    });
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < along.size(); ++i)
+        if (keep[i]) along[kept++] = along[i];
+    along.resize(kept);
+    std::sort(along.begin(), along.end());
+    along.erase(std::unique(along.begin(), along.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), along.end());
+    // The field checks of the first round, for the nearest confirmed line of each node only.
+    keep.assign(along.size(), 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i < r.end(); ++i) keep[i] = nearSurface(along[i].point) && solidBehind(along[i].point, along[i].outward);
+    });
+    kept = 0;
+    for (std::size_t i = 0; i < along.size(); ++i)
+        if (keep[i]) along[kept++] = along[i];
+    along.resize(kept);
+    const std::vector<std::uint8_t> alongNeighbours = sampleNeighbours(along);
+    for (std::size_t i = 0; i < along.size(); ++i) {
+        bool sharesCrossing = false;
+        const int otherSide = neighbourSides(along[i], alongNeighbours[i], sharesCrossing);
+        if (otherSide == 0 || otherSide == 6 || sharesCrossing) continue;
+        place(along[i], along[i].inside);
+        ++out.nodesAlongEdges;
     }
     out.flipped = flipped.size();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -5,6 +5,12 @@
 // planes (paper eq. 11), an edge the line where two meet; the nearest lattice node whose own
 // cell Ω holds the point (or, for an edge, its projection onto the line) moves onto it.
 //
+// A cell may hold two features (a step or a notch less than a cell deep): its crossings are
+// grouped into planes by normal and position, and every corner (or edge) the planes make is
+// proposed, not only the one the two most different normals suggest. A second round moves
+// further nodes onto an edge's line where another cell confirms it, to close the gaps between
+// the nodes the cells chose (see placeSharpFeatures).
+//
 // Rules the paper leaves open, chosen so that the result does not depend on thread order:
 // - normal pairs that are nearly opposite are two sheets of a thin part, not an edge, and a cell
 //   holding such a pair proposes nothing (the normals of a rod or plate turn as fast as at an
@@ -12,8 +18,9 @@
 //   faces' outward normals), which would pinch a thin part into beads or cut a rod in two;
 // - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
 //   the field and its gradient) exceeds a fifth of a cell, is rejected;
-// - a node the thin search moved, or whose six neighbours all lie on the other side, stays put:
-//   it is the only thing that represents a thin part;
+// - a node whose six neighbours all lie on the other side stays put: it is the only thing that
+//   represents a thin part (a node the thin search moved may be placed, keeping the side it
+//   moved to);
 // - when several cells propose to move one node, a corner beats an edge, then the proposal
 //   closest to the node's place wins, then the lower cell coordinate.
 #pragma once
@@ -41,6 +48,7 @@ struct SharpStats {
     std::uint64_t edgeCells = 0, cornerCells = 0; // cells whose normals show an edge / a corner
     std::uint64_t rejected = 0;                   // features found but not placed
     std::uint64_t nodesOnEdges = 0, nodesOnCorners = 0;
+    std::uint64_t nodesAlongEdges = 0; // of nodesOnEdges, placed in the second round (between the cells' choices)
     // Nodes that had no edge to the other side and changed side onto a feature's tip, and the
     // nodes moved to join them: when non-zero, cell cases changed and the surface is rebuilt.
     std::uint64_t flipped = 0, bridged = 0;
