@@ -278,10 +278,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const double d = std::fabs(dot(n[i], edgeDir));
             if (d > phi) phi = d, third = i;
         }
-        // Every crossing must lie on the plane of a defining crossing: its normal agrees with that
-        // plane's, and it lies on it within kMaxFaceBend. Normals alone do not tell two parallel
-        // faces apart (a notch or a step less than a cell deep: the notch's floor and the face it
-        // is cut into), and planes mixed across them meet at a point of neither feature.
+        // Every crossing's normal must agree with a defining crossing's (else: curvature). Whether
+        // it also lies on that plane (within kMaxFaceBend) tells what normals cannot: two parallel
+        // faces less than a cell apart (a notch's floor and the face it is cut into), so two
+        // features in the cell, of which the proposal below finds only one.
         bool normalsAgree = true, onPlanes = true;
         for (int i = 0; i < count; ++i) {
             bool agrees = false, on = false;
