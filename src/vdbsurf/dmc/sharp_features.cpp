@@ -64,7 +64,10 @@ struct Proposal {
     Vec3d direction, outward; // an edge's line and its faces' summed normals (second round)
     bool inside = false; // the node's side before it moves
     bool operator<(const Proposal& o) const {
-        return std::tie(node, kind, distance, cell) < std::tie(o.node, o.kind, o.distance, o.cell);
+        // The point last: one cell may propose one node twice (two features), and the order of
+        // equal keys must not depend on the threads that found them.
+        return std::tie(node, kind, distance, cell, point.x, point.y, point.z) <
+               std::tie(o.node, o.kind, o.distance, o.cell, o.point.x, o.point.y, o.point.z);
     }
 };
 
