@@ -372,7 +372,9 @@ TEST_CASE("a rotated cube on a coarse lattice keeps its corners exactly and its 
         std::sort(ed.begin(), ed.end());
         std::sort(em.begin(), em.end());
         INFO("median edge distance: dmc " << ed[ed.size() / 2] / h << " H, mc " << em[em.size() / 2] / h << " H");
-        CHECK(ed[ed.size() / 2] < 0.1 * h);
+        // Edge nodes follow the edges between the cells' choices (the second round): the median
+        // point lies on the mesh (0.03 H without that round).
+        CHECK(ed[ed.size() / 2] < 0.01 * h);
         CHECK(ed[ed.size() / 2] < 0.5 * em[em.size() / 2]);
     }
 }
