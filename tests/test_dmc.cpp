@@ -96,6 +96,18 @@ Rotation eulerRotation(double ax, double ay, double az) {
              {-sy, cy * sx, cy * cx}}};
 }
 
+// Point q of a frame rotated by R and moved by c, in world coordinates.
+Vec3d inFrame(const Rotation& R, const Vec3d& c, const Vec3d& q) {
+    return c + Vec3d(R[0][0] * q.x + R[0][1] * q.y + R[0][2] * q.z, R[1][0] * q.x + R[1][1] * q.y + R[1][2] * q.z,
+                     R[2][0] * q.x + R[2][1] * q.y + R[2][2] * q.z);
+}
+
+double nearestVertex(const Mesh& m, const Vec3d& p) {
+    double nearest = INFINITY;
+    for (const Vec3f& v : m.points) nearest = std::min(nearest, length(Vec3d(v) - p));
+    return nearest;
+}
+
 const Box3 kBox{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
 constexpr double kH = 0.1;
 
@@ -345,17 +357,9 @@ TEST_CASE("a rotated cube on a coarse lattice keeps its corners exactly and its 
         INFO("h " << h);
         requireClosed(dmc);
         CHECK(countComponents(dmc) == 1);
-        auto world = [&](const Vec3d& l) {
-            return c + Vec3d(R[0][0] * l.x + R[0][1] * l.y + R[0][2] * l.z, R[1][0] * l.x + R[1][1] * l.y + R[1][2] * l.z,
-                             R[2][0] * l.x + R[2][1] * l.y + R[2][2] * l.z);
-        };
+        auto world = [&](const Vec3d& l) { return inFrame(R, c, l); };
         MeshDistance dd(dmc, h), dm(mc, h);
-        for (int s = 0; s < 8; ++s) {
-            const Vec3d corner = world({s & 1 ? 1.0 : -1.0, s & 2 ? 1.0 : -1.0, s & 4 ? 1.0 : -1.0});
-            double nearest = INFINITY;
-            for (const Vec3f& v : dmc.points) nearest = std::min(nearest, length(Vec3d(v) - corner));
-            CHECK(nearest <= 0.1 * h);
-        }
+        for (int s = 0; s < 8; ++s) CHECK(nearestVertex(dmc, world({s & 1 ? 1.0 : -1.0, s & 2 ? 1.0 : -1.0, s & 4 ? 1.0 : -1.0})) <= 0.1 * h);
         // Points along the 12 edges: the median distance to the mesh.
         std::vector<double> ed, em;
         for (int axis = 0; axis < 3; ++axis)
@@ -394,10 +398,7 @@ struct NotchedCube {
         return "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-1, " + num(notch) + "-max(abs(" + l[0] + "-1),abs(" + l[1] +
                "-1),abs(" + l[2] + "-1)))";
     }
-    Vec3d world(const Vec3d& q) const {
-        return c + Vec3d(R[0][0] * q.x + R[0][1] * q.y + R[0][2] * q.z, R[1][0] * q.x + R[1][1] * q.y + R[1][2] * q.z,
-                         R[2][0] * q.x + R[2][1] * q.y + R[2][2] * q.z);
-    }
+    Vec3d world(const Vec3d& q) const { return inFrame(R, c, q); }
     Vec3d concaveCorner() const { return world(Vec3d(1, 1, 1) * (1 - notch)); }
     // Points along the three concave edges (19 each, ends left out).
     std::vector<Vec3d> concaveEdgePoints() const {
@@ -414,12 +415,6 @@ struct NotchedCube {
 };
 
 const Box3 kNotchBox{{-2, -2, -2}, {2, 2, 2}};
-
-double nearestVertex(const Mesh& m, const Vec3d& p) {
-    double nearest = INFINITY;
-    for (const Vec3f& v : m.points) nearest = std::min(nearest, length(Vec3d(v) - p));
-    return nearest;
-}
 
 } // namespace
 

@@ -265,7 +265,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 e.node = node;
                 e.point = q;
                 e.distance = length(q - rest);
-                e.inside = (cc.config >> k) & 1u;
+                e.inside = insideAt(node);
                 e.direction = edgeDir;
                 e.outward = n[i] + n[j];
                 local.alongEdges.push_back(e);
@@ -285,13 +285,14 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // it also lies on that plane (within kMaxFaceBend) tells what normals cannot: two parallel
         // faces less than a cell apart (a notch's floor and the face it is cut into), so two
         // features in the cell, of which the proposal below finds only one.
+        auto liesOn = [&](int i, int k) { return std::fabs(dot(n[k], c[i] - c[k])) <= kMaxFaceBend * h; }; // i on k's plane
         bool normalsAgree = true, onPlanes = true;
         for (int i = 0; i < count; ++i) {
             bool agrees = false, on = false;
             for (int k : {a, b, third}) {
                 if (k < 0 || dot(n[i], n[k]) < kFaceNormalAgreement) continue;
                 agrees = true;
-                on = on || std::fabs(dot(n[k], c[i] - c[k])) <= kMaxFaceBend * h;
+                on = on || liesOn(i, k);
             }
             normalsAgree = normalsAgree && agrees;
             onPlanes = onPlanes && on;
@@ -308,7 +309,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             for (int i = 0; i < count; ++i) {
                 plane[i] = -1;
                 for (int k = 0; k < planes && plane[i] < 0; ++k)
-                    if (dot(n[i], n[rep[k]]) >= kFaceNormalAgreement && std::fabs(dot(n[rep[k]], c[i] - c[rep[k]])) <= kMaxFaceBend * h)
+                    if (dot(n[i], n[rep[k]]) >= kFaceNormalAgreement && liesOn(i, rep[k]))
                         plane[i] = k;
                 if (plane[i] < 0) rep[planes] = i, plane[i] = planes++;
             }
@@ -378,22 +379,23 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         if (options.cancel) options.cancel->check();
         return bits;
     };
+    // One set of accessors for the serial loops below (bridging writes the trees in between:
+    // cleared after it).
+    openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface);
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
     auto place = [&](const Proposal& p, bool inside) {
-        openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
         const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
         const Vec3f off(p.point - rest);
         offsets.setValue(p.node, openvdb::Vec3f(off.x, off.y, off.z));
-        deformation.onSurface->setValueOn(p.node);
-        if (inside) deformation.insideOnSurface->setValueOn(p.node);
+        onSurface.setValueOn(p.node);
+        if (inside) insideOnSurface.setValueOn(p.node);
         (p.kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) += 1;
     };
     // How many of p's six neighbours lie on the other side now (placed nodes by the side they
     // keep, moved nodes on the side they moved to), and whether one of them already sits on a
     // feature across the edge between them: that edge's one vertex cannot be at both.
     auto neighbourSides = [&](const Proposal& p, std::uint8_t insideBits, bool& sharesCrossing) {
-        openvdb::tree::ValueAccessor<const openvdb::Vec3STree> offsets(*deformation.offsets);
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree> onSurface(*deformation.onSurface);
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
         int otherSide = 0;
         sharesCrossing = false;
         for (int j = 0; j < 6; ++j) {
@@ -441,6 +443,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
         });
         out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
+        offsets.clear();
+        onSurface.clear();
+        insideOnSurface.clear();
     }
 
     // Second round, along edges. One node a cell leaves gaps where an edge runs between nodes
@@ -454,44 +459,43 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // placed, not moved), has an edge to the other side (it keeps its side: no case changes)
     // and shares no crossing with a node placed across it. Only the first round flips nodes.
     std::sort(placedFirst.begin(), placedFirst.end(), [](const Proposal& x, const Proposal& y) { return x.node < y.node; });
-    std::vector<std::uint8_t> keep(along.size(), 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
-        openvdb::tree::ValueAccessor<const openvdb::Vec3STree> offsets(*deformation.offsets);
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree> onSurface(*deformation.onSurface);
-        auto confirmed = [&](const Proposal& e) {
-            for (int z = -1; z <= 1; ++z)
-                for (int y = -1; y <= 1; ++y)
-                    for (int x = -1; x <= 1; ++x) {
-                        const Coord nb = e.node.offsetBy(x, y, z);
-                        if (!onSurface.isValueOn(nb)) continue;
-                        const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
-                                                         [](const Proposal& p, const Coord& c) { return p.node < c; });
-                        if (it == placedFirst.end() || it->node != nb || it->cell == e.cell) continue;
-                        const Vec3d d = it->point - e.point;
-                        if (length(d - e.direction * dot(d, e.direction)) <= kOnConfirmedLine * h) return true;
-                    }
-            return false;
-        };
-        for (std::size_t i = r.begin(); i < r.end(); ++i) {
-            const Proposal& e = along[i];
-            keep[i] = !offsets.isValueOn(e.node) && !onSurface.isValueOn(e.node) && confirmed(e);
-        }
+    // Keeps the candidates `keeps(candidate, trees)` accepts, deciding in parallel (each task
+    // reads the trees through its own accessors); their order stays.
+    struct Trees {
+        openvdb::tree::ValueAccessor<const openvdb::Vec3STree> offsets;
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree> onSurface;
+    };
+    auto filterAlong = [&](std::size_t grain, const auto& keeps) {
+        std::vector<std::uint8_t> keep(along.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), grain), [&](const tbb::blocked_range<std::size_t>& r) {
+            Trees trees{openvdb::tree::ValueAccessor<const openvdb::Vec3STree>(*deformation.offsets),
+                        openvdb::tree::ValueAccessor<const openvdb::MaskTree>(*deformation.onSurface)};
+            for (std::size_t i = r.begin(); i < r.end(); ++i) keep[i] = keeps(along[i], trees);
+        });
+        std::size_t kept = 0;
+        for (std::size_t i = 0; i < along.size(); ++i)
+            if (keep[i]) along[kept++] = along[i];
+        along.resize(kept);
+    };
+    filterAlong(256, [&](const Proposal& e, Trees& trees) {
+        if (trees.offsets.isValueOn(e.node) || trees.onSurface.isValueOn(e.node)) return false;
+        for (int z = -1; z <= 1; ++z)
+            for (int y = -1; y <= 1; ++y)
+                for (int x = -1; x <= 1; ++x) {
+                    const Coord nb = e.node.offsetBy(x, y, z);
+                    if (!trees.onSurface.isValueOn(nb)) continue;
+                    const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
+                                                     [](const Proposal& p, const Coord& c) { return p.node < c; });
+                    if (it == placedFirst.end() || it->node != nb || it->cell == e.cell) continue;
+                    const Vec3d d = it->point - e.point;
+                    if (length(d - e.direction * dot(d, e.direction)) <= kOnConfirmedLine * h) return true;
+                }
+        return false;
     });
-    std::size_t kept = 0;
-    for (std::size_t i = 0; i < along.size(); ++i)
-        if (keep[i]) along[kept++] = along[i];
-    along.resize(kept);
     std::sort(along.begin(), along.end());
     along.erase(std::unique(along.begin(), along.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), along.end());
     // The field checks of the first round, for the nearest confirmed line of each node only.
-    keep.assign(along.size(), 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i < r.end(); ++i) keep[i] = nearSurface(along[i].point) && solidBehind(along[i].point, along[i].outward);
-    });
-    kept = 0;
-    for (std::size_t i = 0; i < along.size(); ++i)
-        if (keep[i]) along[kept++] = along[i];
-    along.resize(kept);
+    filterAlong(64, [&](const Proposal& e, Trees&) { return nearSurface(e.point) && solidBehind(e.point, e.outward); });
     const std::vector<std::uint8_t> alongNeighbours = sampleNeighbours(along);
     for (std::size_t i = 0; i < along.size(); ++i) {
         bool sharesCrossing = false;
