@@ -12,6 +12,7 @@
 #include <nlohmann/json.hpp>
 #include <openvdb/openvdb.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -209,6 +210,28 @@ TEST_CASE("compare prints volumeToMesh, mc and dmc side by side and writes JSON"
         CHECK(row["components"].get<int>() == 1);
         CHECK(row["polygons"].get<int>() > 500); // a sphere of radius 1 at H = 0.15: about 800
     }
+}
+
+TEST_CASE("compare shows a mesher that lost the whole surface as an empty row") {
+    // A rod 0.3 H across midway between the nodes of the lattice at H: marching cubes sees nothing.
+    test::TempDir dir;
+    initializeOpenVdb();
+    const double H = 0.1;
+    auto rod = test::makeLevelSetFromDistance(
+        [&](const Vec3d& p) { return std::max(std::hypot(p.x - 0.5 * H, p.y - 0.5 * H) - 0.15 * H, std::fabs(p.z) - 0.5); },
+        {{-0.3, -0.3, -0.7}, {0.3, 0.3, 0.7}}, H / 5);
+    rod->setName("rod");
+    test::writeGrids(dir.path("rod.vdb"), {rod});
+    const auto r = runVdbsurf({"compare", dir.path("rod.vdb"), "--voxel-size", "0.1", "--json", dir.path("r.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("empty") != std::string::npos);
+    CHECK(r.output.find("vdbsurf mc lost the whole surface") != std::string::npos);
+    const auto j = nlohmann::json::parse(test::readFile(dir.path("r.json")));
+    REQUIRE(j["rows"].size() == 3);
+    CHECK(j["rows"][1]["empty"].get<bool>());
+    CHECK_FALSE(j["rows"][2]["empty"].get<bool>());
+    CHECK(j["rows"][2]["coverage_one_h"].get<double>() > 0.99);
 }
 
 TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed scenes leave no file") {

@@ -122,3 +122,37 @@ TEST_CASE("compare at the grid's own voxel size: every mesher is exact on a sphe
     // Same lattice, same field: volumeToMesh and our marching cubes put vertices at the same places.
     CHECK(double(rep.rows[0].vertices) == Approx(double(rep.rows[1].vertices)).epsilon(0.001));
 }
+
+TEST_CASE("compare: a mesher that loses the whole surface is a row of its own, not an error") {
+    // A rod 0.3 H across along z, midway between lattice nodes: no node is inside, so marching
+    // cubes (ours and volumeToMesh) finds nothing, while DMC's thin search finds the rod.
+    const double H = 0.1;
+    auto grid = test::makeLevelSetFromDistance(
+        [&](const Vec3d& p) {
+            const double across = std::hypot(p.x - 0.5 * H, p.y - 0.5 * H) - 0.15 * H;
+            return std::max(across, std::fabs(p.z) - 0.5);
+        },
+        {{-0.3, -0.3, -0.7}, {0.3, 0.3, 0.7}}, H / 5);
+    const GridField field(grid, "rod");
+    CompareRequest req;
+    req.voxelSize = H;
+    const CompareReport rep = compareMeshers(field, req);
+    REQUIRE(rep.rows.size() == 3);
+    CHECK(rep.surfaceSamples > 200);
+    for (const CompareRow& r : rep.rows) {
+        if (r.method == "vdbsurf dmc") continue;
+        INFO(r.method);
+        CHECK(r.polygons == 0);
+        CHECK(r.components == 0);
+        CHECK(r.quality.coverageOne == 0);
+        CHECK(r.quality.fScoreQuarter == 0);
+    }
+    const CompareRow& dmc = rep.rows[2];
+    CHECK(dmc.components == 1);
+    CHECK(dmc.quality.coverageOne >= 0.99);
+    CHECK(dmc.topology.closedManifoldOriented());
+
+    // Where the input itself has no surface there is nothing to compare: one error naming it.
+    req.iso = 5.0;
+    CHECK_THROWS_WITH(compareMeshers(field, req), Catch::Contains("rod") && Catch::Contains("has no surface at iso 5"));
+}

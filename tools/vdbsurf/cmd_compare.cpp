@@ -80,13 +80,19 @@ void runCompare(const CompareOptions& o) {
               << " points at its voxel size): distances of mesh points to it, share of it within H/4 and H of the mesh\n\n";
     std::vector<std::vector<std::string>> table{{"method", "seconds", "vertices", "polygons", "pieces", "closed", "mean dist/H",
                                                  "p95 dist/H", "within H/4", "covers H/4", "covers H", "F-score H/4"}};
-    for (const CompareRow& r : rep.rows)
+    for (const CompareRow& r : rep.rows) {
+        // A mesher that lost the whole surface has no distances to show, and covers nothing.
+        const bool empty = r.polygons == 0;
+        auto ifAny = [&](std::string text) { return empty ? std::string("-") : text; };
         table.push_back({r.method, fixed(r.seconds, 3), std::to_string(r.vertices), std::to_string(r.polygons),
-                         std::to_string(r.components), r.topology.closedManifoldOriented() ? "yes" : "no",
-                         fixed(r.quality.meanDistance / h, 3), fixed(r.quality.p95Distance / h, 3),
-                         fixed(r.quality.accuracyQuarter, 4), fixed(r.quality.coverageQuarter, 4), fixed(r.quality.coverageOne, 4),
+                         std::to_string(r.components), empty ? "empty" : r.topology.closedManifoldOriented() ? "yes" : "no",
+                         ifAny(fixed(r.quality.meanDistance / h, 3)), ifAny(fixed(r.quality.p95Distance / h, 3)),
+                         ifAny(fixed(r.quality.accuracyQuarter, 4)), fixed(r.quality.coverageQuarter, 4), fixed(r.quality.coverageOne, 4),
                          fixed(r.quality.fScoreQuarter, 4)});
+    }
     printTable(table);
+    for (const CompareRow& r : rep.rows)
+        if (r.polygons == 0) note(r.method + " lost the whole surface at spacing " + fixed(h, 6) + ": its mesh is empty");
 
     if (!o.json.empty()) {
         nlohmann::json rows = nlohmann::json::array();
@@ -96,6 +102,7 @@ void runCompare(const CompareOptions& o) {
                             {"seconds_resample", r.secondsResample},
                             {"vertices", r.vertices},
                             {"polygons", r.polygons},
+                            {"empty", r.polygons == 0},
                             {"triangles_after_split", r.triangles},
                             {"components", r.components},
                             {"boundary_edges", r.topology.boundaryEdges},

@@ -1,6 +1,7 @@
 // Errors a user can cause. Every one names the input it is about, so the command line can print
 // one clear line and exit non-zero; everything else (std::exception) is an internal failure.
 #pragma once
+#include <sstream>
 #include <stdexcept>
 #include <string>
 
@@ -16,6 +17,15 @@ public:
 private:
     std::string mInput;
 };
+
+// A number as error messages print it: 9 significant digits, enough to tell a value the user
+// typed from its neighbours.
+inline std::string messageNumber(double v) {
+    std::ostringstream s;
+    s.precision(9);
+    s << v;
+    return s.str();
+}
 
 // Thrown when the user interrupts long work (SIGINT/SIGTERM) or a caller cancels it.
 class Cancelled : public std::runtime_error {

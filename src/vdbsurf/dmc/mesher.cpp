@@ -11,7 +11,6 @@
 #include <chrono>
 #include <memory>
 #include <cmath>
-#include <sstream>
 
 namespace vdbsurf {
 
@@ -22,15 +21,6 @@ const char* methodName(MeshMethod m) {
     }
     return "?";
 }
-
-namespace {
-std::string num(double v) {
-    std::ostringstream s;
-    s.precision(9);
-    s << v;
-    return s.str();
-}
-} // namespace
 
 Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& report) {
     if (request.iso) {
@@ -43,7 +33,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     }
     if (request.voxelSize) {
         if (!(*request.voxelSize > 0) || !std::isfinite(*request.voxelSize))
-            throw Error("--voxel-size", "must be a positive number of world units, not " + num(*request.voxelSize));
+            throw Error("--voxel-size", "must be a positive number of world units, not " + messageNumber(*request.voxelSize));
         report.voxelSize = *request.voxelSize;
         report.voxelSizeReason = "given";
     } else if (auto h = field.naturalSpacing()) {
@@ -132,10 +122,10 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.splitVertices = surface->stats().splitVertices;
     report.secondsMesh = surface->stats().seconds;
 
-    if (mesh.empty()) {
+    if (mesh.empty() && !request.allowEmpty) {
         const Interval r = field.bounds(field.domain());
-        throw Error(field.describe(), "has no surface at iso " + num(report.iso) + " on a lattice of spacing " +
-                                          num(report.voxelSize) + " (values lie within " + num(r.lo) + " .. " + num(r.hi) +
+        throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " on a lattice of spacing " +
+                                          messageNumber(report.voxelSize) + " (values lie within " + messageNumber(r.lo) + " .. " + messageNumber(r.hi) +
                                           "); choose another --iso or a smaller --voxel-size");
     }
     report.vertices = mesh.points.size();

@@ -36,6 +36,9 @@ struct MeshRequest {
     // After nodes flip onto feature tips, recompute only the lattice leaves around them (false:
     // build the whole surface again; same mesh, for tests).
     bool patchAfterFlips = true;
+    // A mesher that loses the whole surface (marching cubes on a part thinner than a cell) is a
+    // result for `compare`, not an error: return the empty mesh instead of throwing.
+    bool allowEmpty = false;
     // Called with the deformed lattice before the final surface is built (--lattice-out).
     std::function<void(const Lattice&, const LatticeDeformation&)> deformedLattice;
     const CancelToken* cancel = nullptr;

@@ -1,6 +1,7 @@
 #include "vdbsurf/quality/compare.h"
 
 #include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/error.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/grid_field.h"
 #include "vdbsurf/vdb/volume_to_mesh_peer.h"
@@ -42,6 +43,7 @@ CompareReport compareMeshers(const GridField& field, const CompareRequest& reque
         req.method = method;
         req.searchSteps = request.searchSteps;
         req.cancel = request.cancel;
+        req.allowEmpty = true; // marching cubes losing a thin part entirely is what compare is for
         const auto t0 = Clock::now();
         Mesh m = meshField(field, req, rep);
         return std::make_pair(std::move(m), since(t0));
@@ -54,13 +56,19 @@ CompareReport compareMeshers(const GridField& field, const CompareRequest& reque
     report.voxelSize = mcReport.voxelSize;
     const double h = report.voxelSize;
 
+    // The input's own surface, the measure of every mesh: without one there is nothing to compare.
+    const std::vector<Vec3d> surface = isoSurfaceSamples(field, report.iso, report.gridVoxelSize);
+    report.surfaceSamples = surface.size();
+    if (surface.empty()) {
+        const Interval r = field.bounds(field.domain());
+        throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " (values lie within " + messageNumber(r.lo) + " .. " +
+                                          messageNumber(r.hi) + "); choose another --iso");
+    }
+
     const bool ownLattice = !request.voxelSize;
     PeerMesh peer = volumeToMeshPeer(field.grid(), report.iso, ownLattice ? nullptr : &mcReport.frame);
     report.resampled = peer.resampled;
     if (request.cancel) request.cancel->check();
-
-    const std::vector<Vec3d> surface = isoSurfaceSamples(field, report.iso, report.gridVoxelSize);
-    report.surfaceSamples = surface.size();
 
     CompareRow ref = describe("volumeToMesh", peer.mesh, peer.secondsResample + peer.secondsMesh, field, report.iso, surface, h);
     ref.secondsResample = peer.secondsResample;

@@ -117,6 +117,7 @@ std::vector<Vec3d> isoSurfaceSamples(const Field& field, double iso, double h) {
     req.iso = iso;
     req.voxelSize = h;
     req.method = MeshMethod::MarchingCubes;
+    req.allowEmpty = true; // no surface: no samples, for the caller to judge
     MeshReport rep;
     const Mesh m = meshField(field, req, rep);
     std::vector<Vec3d> out;
