@@ -467,19 +467,21 @@ TEST_CASE("a concave corner 1.4 cells below a notch's rim is kept, not cut off b
     CHECK(nearestVertex(dmc, shape.concaveCorner()) <= 0.1 * h);
 }
 
-TEST_CASE("on a smooth torus, the second round along edges follows few of the lines curvature makes") {
+TEST_CASE("on a smooth torus, few nodes go onto edges: curvature's lines differ from cell to cell") {
     // Tangent planes of a tube 1.5 to 3 cells thick meet at more than the edge angle, so cells
     // there propose "edges"; their lines differ from cell to cell, so another cell rarely confirms
-    // one, and the second round must not extend them (unconfirmed, it placed 60-100 % as many).
+    // one. Unconfirmed, 13-34 % of the surface cells put a node on an edge (first round alone) and
+    // the second round extended them by 60-100 % more; confirmed, 0-9 %.
     for (double h : {0.1, 0.15, 0.2}) {
         ExpressionField f("sqrt((sqrt(x^2+y^2)-1)^2+z^2)-0.3", Box3{{-1.5, -1.5, -0.5}, {1.5, 1.5, 0.5}});
         MeshRequest req;
         req.voxelSize = h;
         MeshReport rep;
         const Mesh m = meshField(f, req, rep);
-        INFO("h " << h << ": " << rep.nodesOnEdges << " nodes on edges, " << rep.nodesAlongEdges << " in the second round");
+        INFO("h " << h << ": " << rep.nodesOnEdges << " nodes on edges, " << rep.nodesAlongEdges << " in the second round, "
+                  << rep.cellsWithSurface << " cells with surface");
         requireClosed(m);
-        CHECK(rep.nodesAlongEdges <= (rep.nodesOnEdges - rep.nodesAlongEdges) / 4);
+        CHECK(rep.nodesOnEdges * 10 <= rep.cellsWithSurface);
     }
 }
 
@@ -603,17 +605,20 @@ TEST_CASE("two balls touching exactly at a lattice node stay two vertex-manifold
 }
 
 TEST_CASE("after nodes flip onto feature tips, patching the leaves around them gives the mesh a full rebuild gives") {
-    // Two cones on a ball: their tips flip nodes; and the armadillo and smoke grids (19 and 14
-    // flips), when the shared data is there. The patch recomputes only leaves near changed nodes or with new cells.
-    auto both = [](const Field& field, std::optional<double> h) {
+    // Two cones on a ball at H 0.05 (2 flips); the armadillo and smoke grids (13 flips, and 3 on
+    // smoke with a corner threshold of 0.5), when the shared data is there. The patch recomputes
+    // only leaves near changed nodes or with new cells.
+    auto both = [](const Field& field, std::optional<double> h, double sharpCorner = 0.7) {
         Mesh meshes[2];
         MeshReport reports[2];
         for (int patch = 0; patch < 2; ++patch) {
             MeshRequest req;
             req.voxelSize = h;
+            req.sharpCorner = sharpCorner;
             req.patchAfterFlips = patch == 1;
             meshes[patch] = meshField(field, req, reports[patch]);
         }
+        INFO(field.describe());
         CHECK(reports[0].nodesFlipped > 0);
         CHECK(meshes[0].points == meshes[1].points);
         CHECK(meshes[0].offsets == meshes[1].offsets);
@@ -626,7 +631,7 @@ TEST_CASE("after nodes flip onto feature tips, patching the leaves around them g
         const std::string t = "(" + num(r * std::cos(phi)) + "*x+" + num(r * std::sin(phi)) + "*y+" + num(zc) + "*z)";
         f = "min(" + f + ", max(sqrt(max(x^2+y^2+z^2-" + t + "^2, 0))-" + num(0.3 / 2.6) + "*(" + num(2.6) + "-" + t + "), -" + t + "))";
     }
-    both(ExpressionField(f, Box3{{-3, -3, -3}, {3, 3, 3}}), 0.075);
+    both(ExpressionField(f, Box3{{-3, -3, -3}, {3, 3, 3}}), 0.05);
     const std::string armadillo = test::sharedData("vdb/armadillo_levelset.vdb");
     if (armadillo.empty()) {
         WARN("../shared/data absent: armadillo case skipped");
@@ -635,7 +640,9 @@ TEST_CASE("after nodes flip onto feature tips, patching the leaves around them g
     both(GridField(readScalarGrid(armadillo, "").grid, "armadillo"), std::nullopt);
     // Fog whose voxels hold the iso value exactly, some of them placed on features: their
     // vertices must follow the node in leaves that are not recomputed too.
-    both(GridField(readScalarGrid(test::sharedData("vdb/smoke_fog.vdb"), "").grid, "smoke"), std::nullopt);
+    // Its edges are mostly noise that no neighbour confirms; with a lower corner threshold some of
+    // its corners flip (3).
+    both(GridField(readScalarGrid(test::sharedData("vdb/smoke_fog.vdb"), "").grid, "smoke"), std::nullopt, 0.5);
 }
 
 TEST_CASE("DMC output is byte-identical at 1 and 2 threads") {
