@@ -12,6 +12,7 @@
 #include <array>
 #include <cmath>
 #include <sstream>
+#include <stdexcept>
 #include <unordered_map>
 
 namespace vdbsurf {
@@ -194,13 +195,33 @@ public:
             nticks[std::size_t(a)] = n;
         }
         if (fewCells) {
+            // The voxels every tick's trilinear sample reads (at most 6 a side), read once leaf by
+            // leaf; each sample is then BoxSampler's own interpolation of them (the same bits as
+            // BoxSampler::sample, which read 8 voxels through the accessor for each of up to 125
+            // ticks: on a lattice 3 voxels a cell that was most of the lattice's time).
+            using ValueT = typename TreeT::ValueType;
+            const Coord base(int(std::floor(lo.x())), int(std::floor(lo.y())), int(std::floor(lo.z())));
+            const Vec3i dims(int(std::floor(hi.x())) + 2 - base.x(), int(std::floor(hi.y())) + 2 - base.y(),
+                             int(std::floor(hi.z())) + 2 - base.z());
+            ValueT voxels[6 * 6 * 6];
+            if (dims.x > 6 || dims.y > 6 || dims.z > 6) throw std::logic_error("GridField::bounds: more voxels than ticks allow");
             Acc acc(mTree);
+            sampleBlock(acc, base, dims, voxels);
+            auto at = [&](int x, int y, int z) { return voxels[(std::size_t(z) * std::size_t(dims.y) + std::size_t(y)) * std::size_t(dims.x) + std::size_t(x)]; };
             MinMax mm;
             for (int i = 0; i < nticks[0]; ++i)
                 for (int j = 0; j < nticks[1]; ++j)
-                    for (int k = 0; k < nticks[2]; ++k)
-                        mm.add(double(openvdb::tools::BoxSampler::sample(
-                            acc, openvdb::Vec3d(ticks[0][std::size_t(i)], ticks[1][std::size_t(j)], ticks[2][std::size_t(k)]))));
+                    for (int k = 0; k < nticks[2]; ++k) {
+                        const openvdb::Vec3d t(ticks[0][std::size_t(i)], ticks[1][std::size_t(j)], ticks[2][std::size_t(k)]);
+                        const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(t);
+                        const openvdb::Vec3d uvw = t - idx;
+                        const int x = idx.x() - base.x(), y = idx.y() - base.y(), z = idx.z() - base.z();
+                        ValueT data[2][2][2];
+                        for (int a = 0; a < 2; ++a)
+                            for (int b = 0; b < 2; ++b)
+                                for (int c = 0; c < 2; ++c) data[a][b][c] = at(x + a, y + b, z + c);
+                        mm.add(double(openvdb::tools::BoxSampler::trilinearInterpolation(data, uvw)));
+                    }
             return {mm.lo, mm.hi};
         }
         // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1, the latter
