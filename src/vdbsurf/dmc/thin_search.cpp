@@ -153,15 +153,23 @@ public:
                 const Vec3d sub = lo + Vec3d(k & 1 ? mH / 4 : 0, k & 2 ? mH / 4 : 0, k & 4 ? mH / 4 : 0);
                 eighth[k] = mayBeOtherSide(nodeInside, mField.bounds(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}), mIso, mSide);
             }
+            // The octant's samples, evaluated together (a grid reads the voxels under the octant
+            // once), in the order they are listed.
+            thread_local std::vector<Vec3d> points;
+            thread_local std::vector<double> values;
+            points.clear();
             for (int pattern = 0; pattern < 2; ++pattern)
                 for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
                     for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
                         for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) {
                             const Vec3d p = centre + Vec3d(ox, oy, oz);
-                            if (!eighth[(p.x >= mid.x) | (p.y >= mid.y) << 1 | (p.z >= mid.z) << 2]) continue;
-                            ++evaluated;
-                            if (otherSide(nodeInside, mField.value(p))) found.push_back(p);
+                            if (eighth[(p.x >= mid.x) | (p.y >= mid.y) << 1 | (p.z >= mid.z) << 2]) points.push_back(p);
                         }
+            values.resize(points.size());
+            mField.values(Box3{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)}, points.data(), points.size(), values.data());
+            evaluated += points.size();
+            for (std::size_t i = 0; i < points.size(); ++i)
+                if (otherSide(nodeInside, values[i])) found.push_back(points[i]);
         }
         if (found.empty()) return std::nullopt;
         // The node goes where the lattice will evaluate it (a float offset from its place).

@@ -15,6 +15,10 @@ void Field::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec
             }
 }
 
+void Field::values(const Box3&, const Vec3d* points, std::size_t n, double* out) const {
+    for (std::size_t i = 0; i < n; ++i) out[i] = value(points[i]);
+}
+
 double Field::edgeCrossing(const Vec3d& a, const Vec3d& b, double va, double vb, double iso) const {
     return refineCrossing(*this, a, b, va, vb, iso);
 }

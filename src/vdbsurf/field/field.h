@@ -85,6 +85,10 @@ public:
     virtual void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
                              const std::uint8_t* needed, double* out) const;
 
+    // value() at each of the n points, all of which lie in `box`, bit for bit. Fields override it
+    // to read the data under a small box once (a grid's voxels) instead of once a point.
+    virtual void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const;
+
     // True when, on this frame, a cell's bounds are exactly the range of its 8 corner values
     // (a grid meshed at its own voxel size), so the lattice need not ask bounds() per cell.
     virtual bool cellBoundsAreCornerRange(const LatticeFrame& frame) const { return false; }

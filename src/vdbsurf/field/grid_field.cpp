@@ -51,6 +51,7 @@ struct GridField::Impl {
     virtual double value(const Vec3d& p) const = 0;
     virtual Vec3d gradient(const Vec3d& p) const = 0;
     virtual double valueAndGradient(const Vec3d& p, Vec3d& gradient) const = 0;
+    virtual void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const = 0;
     virtual Interval bounds(const Box3& box) const = 0;
     virtual Box3 domain() const = 0;
     virtual Interval valueRange() const = 0;
@@ -109,6 +110,42 @@ public:
         return double(openvdb::tools::BoxSampler::sample(acc, worldToIndex(p)));
     }
 
+    void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override {
+        // The voxels under the box, read once leaf by leaf (up to 8 a side), then each point
+        // interpolated as BoxSampler::sample does: value()'s bits, without a tree walk and eight
+        // accessor reads a point.
+        using ValueT = typename TreeT::ValueType;
+        constexpr int kMaxSide = 8;
+        const Interval3 ib = indexBox(box);
+        const Coord base(int(std::floor(ib.lo.x())), int(std::floor(ib.lo.y())), int(std::floor(ib.lo.z())));
+        const Vec3i dims(int(std::floor(ib.hi.x())) + 2 - base.x(), int(std::floor(ib.hi.y())) + 2 - base.y(),
+                         int(std::floor(ib.hi.z())) + 2 - base.z());
+        if (!ib.finite() || dims.x > kMaxSide || dims.y > kMaxSide || dims.z > kMaxSide) {
+            for (std::size_t i = 0; i < n; ++i) out[i] = value(points[i]);
+            return;
+        }
+        ValueT voxels[kMaxSide * kMaxSide * kMaxSide];
+        Acc acc(mTree);
+        sampleBlock(acc, base, dims, voxels);
+        for (std::size_t i = 0; i < n; ++i) {
+            const openvdb::Vec3d ip = worldToIndex(points[i]);
+            const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(ip);
+            const int x = idx.x() - base.x(), y = idx.y() - base.y(), z = idx.z() - base.z();
+            // Rounding of the transform can put a point of the box's edge a hair outside it.
+            if (x < 0 || y < 0 || z < 0 || x + 1 >= dims.x || y + 1 >= dims.y || z + 1 >= dims.z) {
+                out[i] = value(points[i]);
+                continue;
+            }
+            ValueT data[2][2][2];
+            for (int a = 0; a < 2; ++a)
+                for (int b = 0; b < 2; ++b)
+                    for (int c = 0; c < 2; ++c)
+                        data[a][b][c] = voxels[(std::size_t(z + c) * std::size_t(dims.y) + std::size_t(y + b)) * std::size_t(dims.x) +
+                                               std::size_t(x + a)];
+            out[i] = double(openvdb::tools::BoxSampler::trilinearInterpolation(data, ip - idx));
+        }
+    }
+
     Vec3d gradient(const Vec3d& p) const override {
         // Central differences of the trilinear interpolant half a voxel either side, mapped to
         // world space through the inverse Jacobian transpose.
@@ -162,28 +199,33 @@ public:
         return sample(0);
     }
 
-    Interval bounds(const Box3& box) const override {
+    // The box in index space (the bounding box of its corners' images when the grid is rotated).
+    struct Interval3 {
         openvdb::Vec3d lo, hi;
-        if (mAxisAligned) {
-            lo = worldToIndex(box.min);
-            hi = worldToIndex(box.max);
-        } else {
-            lo = openvdb::Vec3d(std::numeric_limits<double>::infinity());
-            hi = -lo;
-            for (int c = 0; c < 8; ++c) {
-                const Vec3d corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y, (c & 4) ? box.max.z : box.min.z);
-                const openvdb::Vec3d ip = worldToIndex(corner);
-                lo = openvdb::math::minComponent(lo, ip);
-                hi = openvdb::math::maxComponent(hi, ip);
-            }
+        bool finite() const { return std::isfinite(lo.x() + lo.y() + lo.z() + hi.x() + hi.y() + hi.z()); }
+    };
+    Interval3 indexBox(const Box3& box) const {
+        if (mAxisAligned) return {worldToIndex(box.min), worldToIndex(box.max)};
+        Interval3 out{openvdb::Vec3d(std::numeric_limits<double>::infinity()), openvdb::Vec3d(-std::numeric_limits<double>::infinity())};
+        for (int c = 0; c < 8; ++c) {
+            const Vec3d corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y, (c & 4) ? box.max.z : box.min.z);
+            const openvdb::Vec3d ip = worldToIndex(corner);
+            out.lo = openvdb::math::minComponent(out.lo, ip);
+            out.hi = openvdb::math::maxComponent(out.hi, ip);
         }
+        return out;
+    }
+
+    Interval bounds(const Box3& box) const override {
+        const Interval3 ib = indexBox(box);
+        const openvdb::Vec3d &lo = ib.lo, &hi = ib.hi;
         // Between voxel planes the trilinear interpolant is multilinear, so over a box that
         // spans only a few voxel cells its range is the range of its values at the box's corners
         // and where the box meets the voxel planes: exact, and much tighter than the stored
         // values when the mesh lattice is finer than the grid.
         std::array<std::array<double, 5>, 3> ticks;
         std::array<int, 3> nticks{};
-        bool fewCells = std::isfinite(lo.x() + lo.y() + lo.z() + hi.x() + hi.y() + hi.z());
+        bool fewCells = ib.finite();
         for (int a = 0; a < 3 && fewCells; ++a) {
             ticks[a][0] = lo[a];
             int n = 1;
@@ -226,9 +268,8 @@ public:
         }
         // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1, the latter
         // with weight zero when q is a whole number (up to rounding, which straddles() absorbs).
-        const CoordBBox ib(lowerSupport(lo), upperSupport(hi));
         MinMax mm;
-        query(ib, mm);
+        query(CoordBBox(lowerSupport(lo), upperSupport(hi)), mm);
         return {mm.lo, mm.hi};
     }
 
@@ -590,6 +631,7 @@ double GridField::value(const Vec3d& p) const { return mImpl->value(p); }
 Vec3d GridField::gradient(const Vec3d& p) const { return mImpl->gradient(p); }
 double GridField::valueAndGradient(const Vec3d& p, Vec3d& gradient) const { return mImpl->valueAndGradient(p, gradient); }
 Interval GridField::bounds(const Box3& box) const { return mImpl->bounds(box); }
+void GridField::values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const { mImpl->values(box, points, n, out); }
 Box3 GridField::domain() const { return mImpl->domain(); }
 std::optional<double> GridField::naturalSpacing() const { return mImpl->voxelSize(); }
 LatticeFrame GridField::naturalFrame(double h) const { return mImpl->naturalFrame(h); }
