@@ -66,7 +66,8 @@ struct Proposal {
     double distance = 0;
     Coord cell;
     Vec3d point;
-    Vec3d direction, outward; // an edge's line and its faces' summed normals (second round)
+    Vec3d direction; // an edge's line
+    Vec3d outward;   // its faces' summed normals (second round)
     bool inside = false; // the node's side before it moves
     bool operator<(const Proposal& o) const {
         // The point last: one cell may propose one node twice (two features), and the order of
@@ -126,8 +127,8 @@ double distanceToLine(const Vec3d& q, const Vec3d& p, const Vec3d& dir) {
 // lies on the edge's line (an edge's point at least kConfirmAlong from this one along it; a
 // corner anywhere, as the edge may end there). A true edge spans cells and every cell it crosses
 // finds the same line; on a curved or noisy surface each cell's tangent planes meet on a line of
-// their own (a tube a few cells across, fog at its voxel size: there three in four "edges" go
-// unconfirmed, and the mesh comes closer to the surface without them). Cells side by side across
+// their own (a tube a few cells across, fog at its voxel size: there more than nine in ten
+// "edges" go unconfirmed, and the mesh comes closer to the surface without them). Cells side by side across
 // a line share the face crossings that made it, so a point beside this one is no second view.
 // Corners stand without confirmation: three faces seen at once in one cell are rare on curved
 // surfaces (39 of 81,570 cells of the smoke file), and a short notch's corner may have no

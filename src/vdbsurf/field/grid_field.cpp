@@ -67,6 +67,18 @@ struct GridField::Impl {
 
 namespace {
 
+// BoxSampler's trilinear interpolation at fraction uvw from the voxel at (x, y, z) of a block
+// read by sampleBlock (x fastest, dims its size): BoxSampler::sample's bits, from memory.
+template <typename ValueT>
+ValueT interpolateBlock(const ValueT* voxels, const Vec3i& dims, int x, int y, int z, const openvdb::Vec3d& uvw) {
+    ValueT data[2][2][2];
+    for (int a = 0; a < 2; ++a)
+        for (int b = 0; b < 2; ++b)
+            for (int c = 0; c < 2; ++c)
+                data[a][b][c] = voxels[(std::size_t(z + c) * std::size_t(dims.y) + std::size_t(y + b)) * std::size_t(dims.x) + std::size_t(x + a)];
+    return openvdb::tools::BoxSampler::trilinearInterpolation(data, uvw);
+}
+
 template <typename GridT>
 class TypedGrid final : public GridField::Impl {
 public:
@@ -136,13 +148,7 @@ public:
                 out[i] = value(points[i]);
                 continue;
             }
-            ValueT data[2][2][2];
-            for (int a = 0; a < 2; ++a)
-                for (int b = 0; b < 2; ++b)
-                    for (int c = 0; c < 2; ++c)
-                        data[a][b][c] = voxels[(std::size_t(z + c) * std::size_t(dims.y) + std::size_t(y + b)) * std::size_t(dims.x) +
-                                               std::size_t(x + a)];
-            out[i] = double(openvdb::tools::BoxSampler::trilinearInterpolation(data, ip - idx));
+            out[i] = double(interpolateBlock(voxels, dims, x, y, z, ip - idx));
         }
     }
 
@@ -186,12 +192,8 @@ public:
         sampleBlock(acc, base, {3, 3, 3}, block);
         auto sample = [&](int s) {
             const Coord d = corner[s] - base;
-            ValueT data[2][2][2];
-            for (int i = 0; i < 2; ++i)
-                for (int j = 0; j < 2; ++j)
-                    for (int k = 0; k < 2; ++k) data[i][j][k] = block[(d.z() + k) * 9 + (d.y() + j) * 3 + d.x() + i];
             const openvdb::Vec3d uvw = samples[s] - openvdb::Vec3d(corner[s].x(), corner[s].y(), corner[s].z());
-            return double(openvdb::tools::BoxSampler::trilinearInterpolation(data, uvw));
+            return double(interpolateBlock(block, Vec3i(3, 3, 3), d.x(), d.y(), d.z(), uvw));
         };
         openvdb::Vec3d g;
         for (int a = 0; a < 3; ++a) g[a] = sample(2 + 2 * a) - sample(1 + 2 * a);
@@ -249,20 +251,13 @@ public:
             if (dims.x > 6 || dims.y > 6 || dims.z > 6) throw std::logic_error("GridField::bounds: more voxels than ticks allow");
             Acc acc(mTree);
             sampleBlock(acc, base, dims, voxels);
-            auto at = [&](int x, int y, int z) { return voxels[(std::size_t(z) * std::size_t(dims.y) + std::size_t(y)) * std::size_t(dims.x) + std::size_t(x)]; };
             MinMax mm;
             for (int i = 0; i < nticks[0]; ++i)
                 for (int j = 0; j < nticks[1]; ++j)
                     for (int k = 0; k < nticks[2]; ++k) {
                         const openvdb::Vec3d t(ticks[0][std::size_t(i)], ticks[1][std::size_t(j)], ticks[2][std::size_t(k)]);
                         const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(t);
-                        const openvdb::Vec3d uvw = t - idx;
-                        const int x = idx.x() - base.x(), y = idx.y() - base.y(), z = idx.z() - base.z();
-                        ValueT data[2][2][2];
-                        for (int a = 0; a < 2; ++a)
-                            for (int b = 0; b < 2; ++b)
-                                for (int c = 0; c < 2; ++c) data[a][b][c] = at(x + a, y + b, z + c);
-                        mm.add(double(openvdb::tools::BoxSampler::trilinearInterpolation(data, uvw)));
+                        mm.add(double(interpolateBlock(voxels, dims, idx.x() - base.x(), idx.y() - base.y(), idx.z() - base.z(), t - idx)));
                     }
             return {mm.lo, mm.hi};
         }
