@@ -640,7 +640,7 @@ TEST_CASE("two balls touching exactly at a lattice node stay two vertex-manifold
 }
 
 TEST_CASE("after nodes flip onto feature tips, patching the leaves around them gives the mesh a full rebuild gives") {
-    // Two cones on a ball at H 0.05 (2 flips); the armadillo and smoke grids (13 flips, and 3 on
+    // Two cones on a ball at H 0.05 (2 flips); the armadillo and smoke grids (15 flips, and 6 on
     // smoke with a corner threshold of 0.5), when the shared data is there. The patch recomputes
     // only leaves near changed nodes or with new cells.
     auto both = [](const Field& field, std::optional<double> h, double sharpCorner = 0.7) {
@@ -675,8 +675,8 @@ TEST_CASE("after nodes flip onto feature tips, patching the leaves around them g
     both(GridField(readScalarGrid(armadillo, "").grid, "armadillo"), std::nullopt);
     // Fog whose voxels hold the iso value exactly, some of them placed on features: their
     // vertices must follow the node in leaves that are not recomputed too.
-    // Its edges are mostly noise that no neighbour confirms; with a lower corner threshold some of
-    // its corners flip (3).
+    // Its edges are mostly noise that no neighbour confirms; with a lower corner threshold more of
+    // its corners flip.
     both(GridField(readScalarGrid(test::sharedData("vdb/smoke_fog.vdb"), "").grid, "smoke"), std::nullopt, 0.5);
 }
 
