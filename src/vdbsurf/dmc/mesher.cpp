@@ -123,9 +123,8 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.secondsMesh = surface->stats().seconds;
 
     if (mesh.empty() && !request.allowEmpty) {
-        const Interval r = field.bounds(field.domain());
         throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " on a lattice of spacing " +
-                                          messageNumber(report.voxelSize) + " (values lie within " + messageNumber(r.lo) + " .. " + messageNumber(r.hi) +
+                                          messageNumber(report.voxelSize) + " (" + valueRangeText(field) +
                                           "); choose another --iso or a smaller --voxel-size");
     }
     report.vertices = mesh.points.size();

@@ -312,6 +312,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             p.cell = cc.cell;
             p.kind = 1;
             p.direction = edgeDir;
+            p.outward = n[i] + n[j];
             double best = INFINITY;
             for (int k = 0; k < 8; ++k) {
                 const Coord node = cc.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
@@ -324,7 +325,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 p.point = q;
                 p.distance = dist;
             }
-            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[i], c[j]}) || !solidBehind(p.point, n[i] + n[j])) {
+            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[i], c[j]}) || !solidBehind(p.point, p.outward)) {
                 ++local.rejected;
                 return false;
             }
@@ -341,8 +342,6 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 e.point = q;
                 e.distance = length(q - rest);
                 e.inside = insideAt(node);
-                e.direction = edgeDir;
-                e.outward = n[i] + n[j];
                 local.alongEdges.push_back(e);
             }
             return true;

@@ -18,8 +18,9 @@
 //   faces' outward normals), which would pinch a thin part into beads or cut a rod in two;
 // - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
 //   the field and its gradient) exceeds a fifth of a cell, is rejected;
-// - an edge stands only where another cell nearby proposes a point on its line (a straight edge
-//   crosses cells; the tangent planes of a curved or noisy surface meet on a line per cell);
+// - an edge stands only where another cell nearby proposes a point on its line, or a tangent
+//   line meeting it nearby at a small angle (a straight edge crosses cells, a curved one turns
+//   slowly; the tangent planes of a noisy or merely curved surface meet on a line per cell);
 // - a node whose six neighbours all lie on the other side stays put: it is the only thing that
 //   represents a thin part (a node the thin search moved may be placed, keeping the side it
 //   moved to);

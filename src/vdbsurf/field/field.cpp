@@ -1,5 +1,7 @@
 #include "vdbsurf/field/field.h"
 
+#include "vdbsurf/core/error.h"
+
 #include <algorithm>
 
 namespace vdbsurf {
@@ -13,6 +15,11 @@ void Field::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec
                 if (needed && !needed[n]) continue;
                 out[n] = value(frame.nodeWorld(first.x + i, first.y + j, first.z + k));
             }
+}
+
+std::string valueRangeText(const Field& field) {
+    const Interval r = field.bounds(field.domain());
+    return "values lie within " + messageNumber(r.lo) + " .. " + messageNumber(r.hi);
 }
 
 void Field::values(const Box3&, const Vec3d* points, std::size_t n, double* out) const {

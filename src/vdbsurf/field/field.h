@@ -107,6 +107,9 @@ public:
     virtual double edgeCrossing(const Vec3d& a, const Vec3d& b, double va, double vb, double iso) const;
 };
 
+// "values lie within LO .. HI" over the field's domain, for messages about a missing surface.
+std::string valueRangeText(const Field& field);
+
 // Illinois regula falsi on f(a + t (b - a)) - iso, bracketed, at most maxSteps evaluations.
 double refineCrossing(const Field& field, const Vec3d& a, const Vec3d& b, double va, double vb, double iso,
                       int maxSteps = 8);

@@ -60,9 +60,8 @@ CompareReport compareMeshers(const GridField& field, const CompareRequest& reque
     const std::vector<Vec3d> surface = isoSurfaceSamples(field, report.iso, report.gridVoxelSize);
     report.surfaceSamples = surface.size();
     if (surface.empty()) {
-        const Interval r = field.bounds(field.domain());
-        throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " (values lie within " + messageNumber(r.lo) + " .. " +
-                                          messageNumber(r.hi) + "); choose another --iso");
+        throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " (" + valueRangeText(field) +
+                                          "); choose another --iso");
     }
 
     const bool ownLattice = !request.voxelSize;
