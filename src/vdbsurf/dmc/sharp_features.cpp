@@ -492,6 +492,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
 
     const std::vector<std::uint8_t> insideNeighbours = sampleNeighbours(all);
     std::vector<Vec3i> flipped;
+    std::vector<int> flippedKind; // their proposals' kinds
     std::vector<Proposal> placedFirst; // in node order
     for (std::size_t i = 0; i < all.size(); ++i) {
         const Proposal& p = all[i];
@@ -507,7 +508,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         const bool flip = otherSide == 0;
         place(p, flip ? !p.inside : p.inside);
         placedFirst.push_back(p);
-        if (flip) flipped.emplace_back(p.node.x(), p.node.y(), p.node.z());
+        if (flip) {
+            flipped.emplace_back(p.node.x(), p.node.y(), p.node.z());
+            flippedKind.push_back(p.kind);
+        }
     }
     if (!flipped.empty()) {
         ThinSearchOptions to;
@@ -516,6 +520,18 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         to.cancel = options.cancel;
         out.changedNodes = flipped;
         out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped, nullptr, &out.changedNodes);
+        // A flipped node is a join too: a tip of the other side that bridging could not join to it
+        // is a bubble (at a crack's rim: 4 or 8 triangles beside the crack).
+        for (const Vec3i& r : restoreLoneJoins(field, frame, iso, out.changedNodes, deformation)) {
+            const auto f = std::find(flipped.begin(), flipped.end(), r);
+            if (f == flipped.end()) {
+                --out.bridged;
+                continue;
+            }
+            (flippedKind[std::size_t(f - flipped.begin())] == 0 ? out.nodesOnCorners : out.nodesOnEdges) -= 1;
+            flippedKind.erase(flippedKind.begin() + (f - flipped.begin()));
+            flipped.erase(f);
+        }
         std::sort(out.changedNodes.begin(), out.changedNodes.end(), [](const Vec3i& x, const Vec3i& y) {
             return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
         });

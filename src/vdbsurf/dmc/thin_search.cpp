@@ -224,6 +224,50 @@ bool stillKeeps(const EdgeRuns& edgeRuns, const Field& field, const LatticeFrame
 
 } // namespace
 
+std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& joinNodes,
+                                    LatticeDeformation& deformation) {
+    constexpr std::size_t kLargestPiece = 27; // a larger piece made of joins is taken to be a part
+    NodeStates nodes(deformation);
+    auto insideNow = [&](const Coord& c) {
+        double v = 0;
+        field.sampleNodes(frame, {c.x(), c.y(), c.z()}, {1, 1, 1}, nullptr, &v);
+        return nodes.inside(c, isInside(v, iso, field.inside()));
+    };
+    std::vector<Coord> joins;
+    for (const Vec3i& n : joinNodes) joins.emplace_back(n.x, n.y, n.z);
+    std::sort(joins.begin(), joins.end());
+    joins.erase(std::unique(joins.begin(), joins.end()), joins.end());
+    auto isJoin = [&](const Coord& c) { return std::binary_search(joins.begin(), joins.end(), c) && nodes.offsets.isValueOn(c); };
+    std::vector<Coord> restore, seen;
+    for (const Coord& start : joins) {
+        if (!isJoin(start) || !insideNow(start) || std::binary_search(seen.begin(), seen.end(), start)) continue;
+        std::vector<Coord> piece{start};
+        bool anchored = false;
+        for (std::size_t i = 0; i < piece.size() && !anchored; ++i)
+            for (int k = 0; k < 6 && !anchored; ++k) {
+                const Coord nb = piece[i] + axisStep(k / 2, k % 2 ? 1 : -1);
+                if (std::find(piece.begin(), piece.end(), nb) != piece.end() || !insideNow(nb)) continue;
+                anchored = !isJoin(nb) || piece.size() >= kLargestPiece;
+                piece.push_back(nb);
+            }
+        std::sort(piece.begin(), piece.end());
+        std::vector<Coord> merged;
+        std::set_union(seen.begin(), seen.end(), piece.begin(), piece.end(), std::back_inserter(merged));
+        seen.swap(merged);
+        if (!anchored) restore.insert(restore.end(), piece.begin(), piece.end());
+    }
+    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface), insideOnSurface(*deformation.insideOnSurface);
+    std::vector<Vec3i> restored;
+    for (const Coord& c : restore) {
+        acc.setValueOff(c, openvdb::Vec3f(0.0f));
+        onSurface.setValueOff(c);
+        insideOnSurface.setValueOff(c);
+        restored.emplace_back(c.x(), c.y(), c.z());
+    }
+    return restored;
+}
+
 void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
                 ThinSearchStats* stats) {
     const auto start = std::chrono::steady_clock::now();
@@ -269,7 +313,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     if (options.cancel) options.cancel->check();
 
     openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
-    std::vector<Coord> frontier = std::move(ambiguous);
+    std::vector<Coord> frontier = std::move(ambiguous), phaseOne;
     for (std::size_t ci = 0; ci < candidates.size(); ++ci) {
         local.samples += samples[ci];
         if (!moves[ci]) continue;
@@ -280,6 +324,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
             continue;
         acc.setValue(candidates[ci], openvdb::Vec3f(moves[ci]->x, moves[ci]->y, moves[ci]->z));
         frontier.push_back(candidates[ci]);
+        phaseOne.push_back(candidates[ci]);
         ++local.nodesMoved;
     }
     std::sort(frontier.begin(), frontier.end());
@@ -297,6 +342,12 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     local.bridged += hidden.bridged;
     local.nodesMoved += hidden.edgesSplit + hidden.bridged;
     local.samples += hidden.samples;
+    std::sort(phaseOne.begin(), phaseOne.end());
+    std::vector<Vec3i> joins;
+    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it)
+        if (!std::binary_search(phaseOne.begin(), phaseOne.end(), it.getCoord()))
+            joins.emplace_back(it.getCoord().x(), it.getCoord().y(), it.getCoord().z());
+    local.nodesMoved -= restoreLoneJoins(field, frame, iso, joins, deformation).size();
     local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats) *stats = local;
 }

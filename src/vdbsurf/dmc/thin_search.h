@@ -61,4 +61,16 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                               LatticeDeformation& deformation, const std::vector<Vec3i>& from, std::uint64_t* samples = nullptr,
                               std::vector<Vec3i>* moved = nullptr);
 
+// Bridging and the hidden-edge phase move nodes to join what marching cubes would separate, each
+// checked with the nodes around it as they stood; later moves around one can leave it inside with
+// no inside neighbour of its own, a bubble of a thick part that joins nothing (a crack node
+// bridged into the half beside it after its six neighbours had moved into the crack: 8 triangles
+// alone beside the crack). Each inside piece (6-connected, as marching cubes joins inside nodes)
+// made only of nodes among `joins` that moved goes back to rest (also off a sharp feature, for the
+// nodes the sharp pass flipped); the first phase's moves are not joins (a small part alone in its
+// cells is what they are for). Decided on one state for every piece, then applied; returns the
+// nodes restored.
+std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& joins,
+                                    LatticeDeformation& deformation);
+
 } // namespace vdbsurf
