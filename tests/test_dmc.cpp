@@ -3,6 +3,7 @@
 #include "support/test_support.h"
 
 #include "vdbsurf/core/threads.h"
+#include "vdbsurf/dmc/edge_runs.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/mesher.h"
@@ -816,5 +817,32 @@ TEST_CASE("ruling out eighths of Ω by their bounds before sampling changes no m
         CHECK(withReport.thinSamples < withoutReport.thinSamples);
         CHECK(with.points == without.points);
         CHECK(with.indices == without.indices);
+    }
+}
+
+TEST_CASE("a crack's outside meets the outside round the rim, a shell's cavity never does, at any search steps") {
+    // The local search behind moves into a crack near its rim (edge_runs.h, joinedNearby): the
+    // crack (0.3 H wide, along z = 0) and the outside beyond the ball meet within half a cell,
+    // though every bowed path from the crack to that point crosses the half above it; a shell
+    // 0.3 H thick keeps its cavity and the outside apart. 64 steps take the search's large-box path.
+    const ExpressionField crack("max(sqrt(x^2+y^2+z^2)-0.8, 0.015-abs(z))", kBox);
+    const ExpressionField shell("abs(sqrt(x^2+y^2+z^2)-0.7)-0.015", kBox);
+    const LatticeFrame frame{{-1.05, -1.05, -1.05}, kH};
+    const Lattice crackLattice = buildLattice(crack, frame, latticeCellRange(crack, frame), 0.0, CellTest::CornerSigns);
+    const Lattice shellLattice = buildLattice(shell, frame, latticeCellRange(shell, frame), 0.0, CellTest::CornerSigns);
+    for (int steps : {5, 64}) {
+        INFO("search steps " << steps);
+        const EdgeRuns crackRuns(crack, crackLattice, 0.0, steps), shellRuns(shell, shellLattice, 0.0, steps);
+        std::uint64_t evaluated = 0;
+        const Vec3d inCrack(0.72, 0.01, 0.0), beyondRim(0.8, 0.01, 0.04);
+        CHECK(crack.value(inCrack) > 0);
+        CHECK(crack.value(beyondRim) > 0);
+        CHECK(crack.value((inCrack + beyondRim) * 0.5) < 0); // the straight way crosses the upper half
+        CHECK_FALSE(crackRuns.bentPathJoins(inCrack, beyondRim, false, evaluated));
+        CHECK(crackRuns.joinedNearby(inCrack, beyondRim, false, evaluated));
+        const Vec3d inCavity(0.66, 0.02, 0.01), outside(0.74, 0.02, 0.01);
+        CHECK_FALSE(shellRuns.joinedNearby(inCavity, outside, false, evaluated));
+        CHECK(shellRuns.joinedNearby(inCavity, Vec3d(0.6, -0.03, 0.02), false, evaluated)); // both in the cavity
+        CHECK(evaluated > 0);
     }
 }

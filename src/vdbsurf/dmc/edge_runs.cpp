@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <queue>
+#include <unordered_set>
 #include <utility>
 
 namespace vdbsurf {
@@ -74,10 +75,11 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
 
 bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const {
     // Where a and b are joined the search heads almost straight for b: those it confirms (crack
-    // rims) take a few dozen samples; a search that has not arrived within this many is taken
-    // to have found no path (noisy fog at 3 voxels a cell: a tenth of the evaluations, the same
-    // cracks kept apart).
-    constexpr std::uint64_t kBudget = 100;
+    // rims) take a few dozen samples; a search that has not arrived within 20 samples per step
+    // of the search (a cell is 2k samples across) is taken to have found no path (noisy fog at 3
+    // voxels a cell: a tenth of the evaluations of a search without a budget, the same cracks
+    // kept apart).
+    const std::uint64_t kBudget = 20 * std::uint64_t(mSteps);
     const std::uint64_t before = evaluated;
     const double step = mFrame.h / (2.0 * mSteps), margin = 0.5 * mFrame.h;
     // Samples a + step·(i + lo) for i within size: a is one of them; the box holds both ends and margin.
@@ -89,12 +91,23 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
     auto point = [&](int x, int y, int z) { return a + Vec3d(x + lo[0], y + lo[1], z + lo[2]) * step; };
     auto index = [&](int x, int y, int z) { return std::size_t(x) + std::size_t(size[0]) * (std::size_t(y) + std::size_t(size[1]) * std::size_t(z)); };
     // Samples are evaluated when taken from the queue, so a search that heads straight for b
-    // evaluates little more than the path.
-    std::vector<std::uint8_t> queued(std::size_t(size[0]) * std::size_t(size[1]) * std::size_t(size[2]), 0);
+    // evaluates little more than the path. What was queued: a flag a sample of the box (~14 k at
+    // the default steps), or a set where the box is large (~50 M samples at --search-steps 64;
+    // the budget bounds what is queued).
+    const std::size_t boxSamples = std::size_t(size[0]) * std::size_t(size[1]) * std::size_t(size[2]);
+    constexpr std::size_t kLargestFlagged = std::size_t(1) << 20;
+    std::vector<std::uint8_t> flagged(boxSamples <= kLargestFlagged ? boxSamples : 0, 0);
+    std::unordered_set<std::size_t> inSet;
+    auto firstQueued = [&](std::size_t i) { // true the first time i is queued
+        if (boxSamples > kLargestFlagged) return inSet.insert(i).second;
+        if (flagged[i]) return false;
+        flagged[i] = 1;
+        return true;
+    };
     using Entry = std::pair<double, std::size_t>; // distance to b, index: ties go by index
     std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> open;
     const std::size_t first = index(-lo[0], -lo[1], -lo[2]);
-    queued[first] = 1;
+    firstQueued(first);
     open.push({length(b - a), first});
     bool atStart = true;
     while (!open.empty()) {
@@ -124,8 +137,7 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
                     const int nx = x + dx, ny = y + dy, nz = z + dz;
                     if (nx < 0 || ny < 0 || nz < 0 || nx >= size[0] || ny >= size[1] || nz >= size[2]) continue;
                     const std::size_t ni = index(nx, ny, nz);
-                    if (queued[ni]) continue;
-                    queued[ni] = 1;
+                    if (!firstQueued(ni)) continue;
                     open.push({length(b - point(nx, ny, nz)), ni});
                 }
     }
