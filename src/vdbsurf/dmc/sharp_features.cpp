@@ -492,7 +492,6 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
 
     const std::vector<std::uint8_t> insideNeighbours = sampleNeighbours(all);
     std::vector<Vec3i> flipped;
-    std::vector<int> flippedKind; // their proposals' kinds
     std::vector<Proposal> placedFirst; // in node order
     for (std::size_t i = 0; i < all.size(); ++i) {
         const Proposal& p = all[i];
@@ -508,10 +507,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         const bool flip = otherSide == 0;
         place(p, flip ? !p.inside : p.inside);
         placedFirst.push_back(p);
-        if (flip) {
-            flipped.emplace_back(p.node.x(), p.node.y(), p.node.z());
-            flippedKind.push_back(p.kind);
-        }
+        if (flip) flipped.emplace_back(p.node.x(), p.node.y(), p.node.z());
     }
     if (!flipped.empty()) {
         ThinSearchOptions to;
@@ -528,8 +524,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 --out.bridged;
                 continue;
             }
-            (flippedKind[std::size_t(f - flipped.begin())] == 0 ? out.nodesOnCorners : out.nodesOnEdges) -= 1;
-            flippedKind.erase(flippedKind.begin() + (f - flipped.begin()));
+            const auto placed = std::find_if(placedFirst.begin(), placedFirst.end(), [&](const Proposal& p) {
+                return p.node == Coord(r.x, r.y, r.z);
+            });
+            (placed->kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) -= 1;
             flipped.erase(f);
         }
         std::sort(out.changedNodes.begin(), out.changedNodes.end(), [](const Vec3i& x, const Vec3i& y) {
