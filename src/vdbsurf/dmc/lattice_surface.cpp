@@ -122,6 +122,27 @@ struct LatticeSurface::Impl {
     // All leaves, or only those listed (their work is recomputed from scratch).
     void firstPass(const std::vector<std::size_t>* only = nullptr);
     VertexRef vertexOf(const LeafWork& w, const Coord& cell, int e) const;
+    // vertexOf for edge e of the cell at local offset `offset` of leaf li (w = work[li]), with the
+    // common case answered from that leaf alone: a cell off the lattice's max faces owns the
+    // edges at its min corner, so the owner of an edge is the cell at the edge's min corner,
+    // most often in the same leaf.
+    VertexRef vertexOfCell(std::size_t li, const LeafWork& w, openvdb::Index offset, const Coord& cell, bool onMax, int e) const {
+        if (!onMax) {
+            const Vec3i eo = cubeEdgeOrigin(e);
+            const int x = int(offset >> 6) + eo.x, y = int((offset >> 3) & 7) + eo.y, z = int(offset & 7) + eo.z;
+            if (x < 8 && y < 8 && z < 8) {
+                const openvdb::Index o = openvdb::Index((x << 6) | (y << 3) | z);
+                const MaskLeaf& leaf = leafManager.leaf(li);
+                if (!leaf.isValueOn(o)) throw std::logic_error("lattice surface: the owner cell of an edge is inactive");
+                const std::uint32_t rank = cellRank(leaf, w, o);
+                const std::uint16_t m = w.ownedEdges[rank];
+                const int oe = cubeEdgeAxis(e) * 4; // the edge along the same axis at the owner's min corner
+                if (!(m & (1u << oe))) throw std::logic_error("lattice surface: an edge crossing has no vertex");
+                return {std::uint32_t(li), std::uint32_t(w.vertexPrefix[rank]) + std::uint32_t(__builtin_popcount(m & ((1u << oe) - 1u)))};
+            }
+        }
+        return vertexOf(w, cell, e);
+    }
 };
 
 void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
@@ -349,9 +370,10 @@ void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCross
                 c.cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);
                 c.config = config;
                 const CubeCase& cc = cubeCase(config);
+                const bool onMax = onMaxFace(c.cell, im.lattice.cellRange);
                 for (int e = 0; e < 12; ++e) {
                     if (!(cc.edgeMask & (1u << e))) continue;
-                    const VertexRef v = im.vertexOf(w, c.cell, e);
+                    const VertexRef v = im.vertexOfCell(li, w, it.pos(), c.cell, onMax, e);
                     pos[std::size_t(e)] = im.work[v.leaf].vertices[v.local];
                     if (im.options.normals) nrm[std::size_t(e)] = im.work[v.leaf].normals[v.local];
                 }
@@ -536,11 +558,12 @@ Mesh LatticeSurface::mesh() {
                 const int off = int(it.pos());
                 const Coord cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);
                 const CubeCase& cc = cubeCase(config);
+                const bool onMax = onMaxFace(cell, im.lattice.cellRange);
                 std::array<std::uint32_t, 12> ids;
                 for (int l = 0, k0 = 0; l < cc.loopCount; k0 += cc.loopSize[l], ++l) {
                     const std::uint32_t k = cc.loopSize[l];
                     for (std::uint32_t i = 0; i < k; ++i) {
-                        const VertexRef v = im.vertexOf(w, cell, cc.edges[k0 + int(i)]);
+                        const VertexRef v = im.vertexOfCell(li, w, it.pos(), cell, onMax, cc.edges[k0 + int(i)]);
                         ids[i] = im.work[v.leaf].vertexBase + v.local;
                     }
                     auto emit = [&](std::initializer_list<std::uint32_t> vs) {

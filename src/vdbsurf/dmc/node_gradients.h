@@ -51,8 +51,20 @@ class NodeGradients {
 public:
     // Values of the leaf's nodes at `origin` and of the nodes beside them (one sampleNodes call:
     // a grid copies its leaf buffers).
+    // The gradients of all the leaf's nodes are computed here once: a node is a corner of up to
+    // eight cells, each of which reads its gradient (the per-cell edge test below took as long as
+    // the rest of the crossings' normals when each cell took differences of its own).
     void sample(const Field& field, const LatticeFrame& frame, const openvdb::Coord& origin) {
         field.sampleNodes(frame, {origin.x() - 1, origin.y() - 1, origin.z() - 1}, {kSide, kSide, kSide}, nullptr, mValues.data());
+        std::size_t n = 0;
+        for (int z = 0; z < kLeafNodesPerSide; ++z)
+            for (int y = 0; y < kLeafNodesPerSide; ++y)
+                for (int x = 0; x < kLeafNodesPerSide; ++x, ++n) {
+                    const std::size_t i = index(x, y, z);
+                    double* g = mGradient[n];
+                    for (std::size_t a = 0; a < 3; ++a) g[a] = (mValues[i + kStride[a]] - mValues[i - kStride[a]]) * 0.5;
+                    mSquared[n] = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+                }
     }
 
     // The values of the leaf's own nodes, as sampleLeafNodes gives them (the sample holds them).
@@ -64,23 +76,22 @@ public:
 
     // Gradient (index units) at a node of the leaf.
     Vec3d at(const Vec3i& n) const {
-        return Vec3d(mValues[index(n.x + 1, n.y, n.z)] - mValues[index(n.x - 1, n.y, n.z)],
-                     mValues[index(n.x, n.y + 1, n.z)] - mValues[index(n.x, n.y - 1, n.z)],
-                     mValues[index(n.x, n.y, n.z + 1)] - mValues[index(n.x, n.y, n.z - 1)]) *
-               0.5;
+        const double* g = mGradient[leafNodeIndex(n.x, n.y, n.z)];
+        return Vec3d(g[0], g[1], g[2]);
     }
 
     // May a sharp edge (two crossing normals with cosine below the limit's) pass through the
     // leaf's cell at (x, y, z)? Conservative: true also where a corner has no usable gradient.
     bool mayHoldSharpEdge(int x, int y, int z, const SharpEdgeLimit& limit) const {
         // Plain arrays (a Vec3d zeroes itself: that was a sixth of the test's time).
-        double g[8][3], gg[8];
+        const double* g[8];
+        double gg[8];
         double sum[3] = {0, 0, 0};
-        const std::size_t first = index(x, y, z);
+        const int first = leafNodeIndex(x, y, z);
         for (int c = 0; c < 8; ++c) {
-            const std::size_t i = first + std::size_t(c & 1) + kSide * std::size_t((c >> 1) & 1) + kSide * kSide * std::size_t(c >> 2);
-            for (int a = 0; a < 3; ++a) g[c][a] = (mValues[i + kStride[a]] - mValues[i - kStride[a]]) * 0.5;
-            gg[c] = g[c][0] * g[c][0] + g[c][1] * g[c][1] + g[c][2] * g[c][2];
+            const int i = first + (c & 1) + kLeafNodesPerSide * ((c >> 1) & 1) + kLeafNodesPerSide * kLeafNodesPerSide * (c >> 2);
+            g[c] = mGradient[i];
+            gg[c] = mSquared[i];
             // (Outside this range the squared products below could overflow or vanish.)
             if (!(gg[c] > 1e-100 && gg[c] < 1e100)) return true;
             for (int a = 0; a < 3; ++a) sum[a] += g[c][a];
@@ -106,6 +117,8 @@ private:
     static std::size_t index(int x, int y, int z) { return std::size_t((x + 1) + kSide * ((y + 1) + kSide * (z + 1))); }
 
     std::array<double, kCount> mValues;
+    double mGradient[kLeafNodeCount][3]; // per node of the leaf (leafNodeIndex), index units
+    double mSquared[kLeafNodeCount];     // their squared lengths
 };
 
 } // namespace vdbsurf
