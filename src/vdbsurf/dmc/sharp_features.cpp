@@ -9,10 +9,12 @@
 #include "vdbsurf/lattice/lattice.h"
 
 #include <Eigen/Dense>
+#include <openvdb/tools/Morphology.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <tuple>
@@ -73,7 +75,9 @@ struct Proposal {
     Coord cell;
     Vec3d point;
     Vec3d direction; // an edge's line
+    Vec3d onLine;    // the point of the line the cell found (its other nodes' Ω are met from it)
     Vec3d outward;   // its faces' summed normals (second round)
+    unsigned config = 0; // the cell's case: the side of each of its corners
     bool inside = false; // the node's side before it moves
     bool operator<(const Proposal& o) const {
         // The point last: one cell may propose one node twice (two features), and the order of
@@ -82,6 +86,18 @@ struct Proposal {
                std::tie(o.node, o.kind, o.distance, o.cell, o.point.x, o.point.y, o.point.z);
     }
 };
+
+// The field checks of a proposal, kept for later where a cell's proposal is decided alone: a
+// feature point near the surface, on flat faces towards each defining crossing, with solid behind.
+struct FieldCheck {
+    Vec3d faces[3];
+    int faceCount = 0;
+    Vec3d behind; // the faces' summed outward normals
+};
+
+// A proposal's field checks: not yet made, passed, failed. Made at most once each, on demand by
+// any task; a pure function of the proposal, so a race writes the same value.
+enum : std::uint8_t { kUnchecked = 0, kPassed = 1, kFailed = 2 };
 
 inline Vec3d toVec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
 inline Eigen::Vector3d toEigen(const Vec3d& v) { return {v.x, v.y, v.z}; }
@@ -139,19 +155,23 @@ double distanceToLine(const Vec3d& q, const Vec3d& p, const Vec3d& dir) {
 // a line share the face crossings that made it, so a point beside this one is no second view.
 // Corners stand without confirmation: three faces seen at once in one cell are rare on curved
 // surfaces (39 of 81,570 cells of the smoke file), and a short notch's corner may have no
-// neighbour that sees its edges. Order kept; decided in parallel, the result does not depend on
+// neighbour that sees its edges. Only proposals whose field checks pass (passes(i)) count, on
+// either side; the checks are asked for only where the geometry confirms, so most proposals of a
+// noisy surface never need them. Order kept; decided in parallel, the result does not depend on
 // the threads.
-std::vector<Proposal> confirmedByNeighbours(std::vector<Proposal> all, double h) {
+template <typename Passes>
+std::vector<Proposal> confirmedByNeighbours(const std::vector<Proposal>& all, double h, const Passes& passes) {
     struct Seen { // what a confirming proposal needs, packed and ordered by cell
         Coord cell;
         int kind;
         Vec3d point, direction;
+        std::size_t index;
     };
     std::vector<Seen> seen(all.size());
-    for (std::size_t i = 0; i < all.size(); ++i) seen[i] = {all[i].cell, all[i].kind, all[i].point, all[i].direction};
+    for (std::size_t i = 0; i < all.size(); ++i) seen[i] = {all[i].cell, all[i].kind, all[i].point, all[i].direction, i};
     std::sort(seen.begin(), seen.end(), [](const Seen& x, const Seen& y) { return x.cell < y.cell; });
     const double tolerance = kOnConfirmedLine * h;
-    auto confirms = [&](const Seen& q, const Proposal& p) {
+    auto confirms = [&](const Seen& q, const Seen& p) {
         if (q.kind == 0) return distanceToLine(q.point, p.point, p.direction) <= tolerance; // the edge may end there
         const Vec3d d = q.point - p.point;
         if (std::fabs(dot(d, p.direction)) < kConfirmAlong * h) return false;
@@ -165,24 +185,39 @@ std::vector<Proposal> confirmedByNeighbours(std::vector<Proposal> all, double h)
         return std::fabs(t) <= kCurvedEdgeReach * h && std::fabs(u) <= kCurvedEdgeReach * h;
     };
     std::vector<std::uint8_t> keep(all.size(), 0);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, all.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t i = r.begin(); i < r.end(); ++i) {
-            const Proposal& p = all[i];
-            keep[i] = p.kind == 0;
-            // Cells are ordered x, y, z: the three cells of one (x, y) column are adjacent.
-            for (int k = 0; k < 9 && !keep[i]; ++k) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, seen.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        // Cells are ordered x, y, z: the three cells of one (x, y) column are adjacent, and the
+        // first of each of the nine columns around a cell moves forward as the cell does, so
+        // one cursor a column walks the range once.
+        using It = typename std::vector<Seen>::const_iterator;
+        It cursor[9];
+        for (int k = 0; k < 9; ++k)
+            cursor[k] = std::lower_bound(seen.cbegin(), seen.cend(), seen[r.begin()].cell.offsetBy(k % 3 - 1, k / 3 - 1, -1),
+                                         [](const Seen& q, const Coord& c) { return q.cell < c; });
+        for (std::size_t s = r.begin(); s < r.end(); ++s) {
+            const Seen& p = seen[s];
+            const std::size_t i = p.index;
+            if (p.kind == 0) {
+                keep[i] = passes(i);
+                continue;
+            }
+            bool decided = false;
+            for (int k = 0; k < 9; ++k) {
                 const Coord first = p.cell.offsetBy(k % 3 - 1, k / 3 - 1, -1), last = first.offsetBy(0, 0, 2);
-                auto it = std::lower_bound(seen.begin(), seen.end(), first, [](const Seen& q, const Coord& c) { return q.cell < c; });
-                for (; it != seen.end() && !(last < it->cell) && !keep[i]; ++it)
-                    keep[i] = it->cell != p.cell && confirms(*it, p);
+                It& it = cursor[k];
+                while (it != seen.cend() && it->cell < first) ++it;
+                for (It q = it; !decided && q != seen.cend() && !(last < q->cell); ++q) {
+                    if (q->cell == p.cell || !confirms(*q, p)) continue;
+                    if (!passes(i)) decided = true;
+                    else if (passes(q->index)) keep[i] = 1, decided = true;
+                }
             }
         }
     });
-    std::size_t kept = 0;
+    std::vector<Proposal> kept;
     for (std::size_t i = 0; i < all.size(); ++i)
-        if (keep[i]) all[kept++] = all[i];
-    all.resize(kept);
-    return all;
+        if (keep[i]) kept.push_back(all[i]);
+    return kept;
 }
 
 bool isCornerOf(const Coord& node, const Coord& cell) {
@@ -204,7 +239,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     const Inside side = field.inside();
 
     struct Local {
-        std::vector<Proposal> proposals, alongEdges;
+        std::vector<Proposal> proposals;
+        std::vector<FieldCheck> checks;      // per proposal: its field checks, when deferred
+        std::vector<std::uint8_t> status;    // per proposal: kPassed, or kUnchecked (deferred)
         std::uint64_t edgeCells = 0, cornerCells = 0, rejected = 0;
         Vec3d c[12], n[12]; // one cell's crossings and normals (here: not cleared for every cell)
     };
@@ -217,9 +254,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return std::fabs(v - iso) <= cells * h * len;
     };
     auto nearSurface = [&](const Vec3d& p) { return within(p, kMaxSurfaceDistance); };
-    auto facesFlat = [&](const Vec3d& feature, std::initializer_list<Vec3d> crossings) {
-        for (const Vec3d& c : crossings)
-            if (!within(0.5 * (feature + c), kMaxFaceBend)) return false;
+    auto facesFlat = [&](const Vec3d& feature, const FieldCheck& check) {
+        for (int i = 0; i < check.faceCount; ++i)
+            if (!within(0.5 * (feature + check.faces[i]), kMaxFaceBend)) return false;
         return true;
     };
 
@@ -273,32 +310,43 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const Coord d = node - cc.cell;
             return ((cc.config >> (d.x() + 2 * d.y() + 4 * d.z())) & 1u) != 0;
         };
+        // Records a proposal whose geometry stands. Its field checks are made now (`defer` false:
+        // the cell's further proposals depend on them), or when a neighbour confirms it.
+        auto record = [&](const Proposal& p, const FieldCheck& check, bool defer) {
+            if (!defer && !(nearSurface(p.point) && facesFlat(p.point, check) && solidBehind(p.point, check.behind))) {
+                ++local.rejected;
+                return false;
+            }
+            local.proposals.push_back(p);
+            local.checks.push_back(defer ? check : FieldCheck());
+            local.status.push_back(defer ? kUnchecked : kPassed);
+            return true;
+        };
         // A corner where the planes of crossings i, j, k meet, for the cell corner nearest it.
-        auto proposeCorner = [&](int i, int j, int k) {
+        auto proposeCorner = [&](int i, int j, int k, bool defer) {
             ++local.cornerCells;
             const Vec3d planes[3] = {n[i], n[j], n[k]};
             const double rhs[3] = {dot(n[i], c[i]), dot(n[j], c[j]), dot(n[k], c[k])};
             Vec3d corner;
-            if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell) || !nearSurface(corner) ||
-                !facesFlat(corner, {c[i], c[j], c[k]}) || !solidBehind(corner, n[i] + n[j] + n[k])) {
+            if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell)) {
                 ++local.rejected;
                 return false;
             }
             Proposal p;
             p.cell = cc.cell;
+            p.config = cc.config;
             p.kind = 0;
             p.node = nearestNode(frame, corner);
             p.point = corner;
             p.distance = length(corner - frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z())));
             p.inside = insideAt(p.node);
-            local.proposals.push_back(p);
-            return true;
+            return record(p, FieldCheck{{c[i], c[j], c[k]}, 3, n[i] + n[j] + n[k]}, defer);
         };
         // The edge where the planes of crossings i and j meet, placed along the line at `along`
         // (a point whose projection fixes where on the line the cell is): the cell corner whose
-        // projection onto the line stays in its Ω and is nearest; the other corners whose Ω the
-        // line crosses are candidates for the second round.
-        auto proposeEdge = [&](int i, int j, const Vec3d& along) {
+        // projection onto the line stays in its Ω and is nearest. (The other corners whose Ω the
+        // line crosses are the second round's.)
+        auto proposeEdge = [&](int i, int j, const Vec3d& along, bool defer) {
             ++local.edgeCells;
             const Vec3d edgeDir = normalized(cross(n[i], n[j]));
             const Vec3d planes[3] = {n[i], n[j], edgeDir};
@@ -310,8 +358,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             }
             Proposal p;
             p.cell = cc.cell;
+            p.config = cc.config;
             p.kind = 1;
             p.direction = edgeDir;
+            p.onLine = onLine;
             p.outward = n[i] + n[j];
             double best = INFINITY;
             for (int k = 0; k < 8; ++k) {
@@ -325,26 +375,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 p.point = q;
                 p.distance = dist;
             }
-            if (!(best < INFINITY) || !nearSurface(p.point) || !facesFlat(p.point, {c[i], c[j]}) || !solidBehind(p.point, p.outward)) {
+            if (!(best < INFINITY)) {
                 ++local.rejected;
                 return false;
             }
             p.inside = insideAt(p.node);
-            local.proposals.push_back(p);
-            for (int k = 0; k < 8; ++k) {
-                const Coord node = cc.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
-                if (node == p.node) continue;
-                const Vec3d rest = frame.nodeWorld(Vec3i(node.x(), node.y(), node.z()));
-                Vec3d q;
-                if (!closestOnLineInOmega(onLine, edgeDir, rest, h, q)) continue;
-                Proposal e = p;
-                e.node = node;
-                e.point = q;
-                e.distance = length(q - rest);
-                e.inside = insideAt(node);
-                local.alongEdges.push_back(e);
-            }
-            return true;
+            return record(p, FieldCheck{{c[i], c[j], Vec3d()}, 2, p.outward}, defer);
         };
 
         const Vec3d edgeDir = normalized(cross(n[a], n[b]));
@@ -390,8 +426,11 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         }
         Vec3d mean;
         for (int i = 0; i < count; ++i) mean += c[i];
-        const bool proposed = third >= 0 ? proposeCorner(a, b, third) : proposeEdge(a, b, mean / double(count));
-        if (!proposed || onPlanes || planes > kMaxPlanes || planes == count) return;
+        // Most cells (all on a curved or noisy surface) stop at one proposal, whose field checks
+        // wait until a neighbour confirms it; a cell that may hold two features needs them now.
+        const bool alone = onPlanes || planes > kMaxPlanes || planes == count;
+        const bool proposed = third >= 0 ? proposeCorner(a, b, third, alone) : proposeEdge(a, b, mean / double(count), alone);
+        if (!proposed || alone) return;
         // Then every other corner three of the planes make is proposed (or, if none, every edge
         // two make): where the proposal above passed, the cell holds a true feature and its
         // planes are worth the field checks.
@@ -406,7 +445,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                     const int i = rep[x], j = rep[y], k = rep[z];
                     if (!meets(i, j) || !meets(i, k) || !meets(j, k)) continue;
                     if (std::fabs(dot(n[k], normalized(cross(n[i], n[j])))) <= options.cornerThreshold) continue;
-                    anyCorner = proposeCorner(i, j, k) || anyCorner;
+                    anyCorner = proposeCorner(i, j, k, false) || anyCorner;
                 }
         if (anyCorner) return;
         for (int x = 0; x < planes; ++x)
@@ -417,22 +456,37 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 int m = 0;
                 for (int u = 0; u < count; ++u)
                     if (plane[u] == x || plane[u] == y) mean += c[u], ++m;
-                proposeEdge(i, j, mean / double(m));
+                proposeEdge(i, j, mean / double(m), false);
             }
     }, /*onlySharpCandidates=*/true);
 
     SharpStats out;
-    std::vector<Proposal> all, along;
+    std::vector<Proposal> proposals;
+    std::vector<FieldCheck> checks;
+    std::vector<std::uint8_t> initialStatus;
     for (Local& l : locals) {
-        all.insert(all.end(), l.proposals.begin(), l.proposals.end());
-        along.insert(along.end(), l.alongEdges.begin(), l.alongEdges.end());
+        proposals.insert(proposals.end(), l.proposals.begin(), l.proposals.end());
+        checks.insert(checks.end(), l.checks.begin(), l.checks.end());
+        initialStatus.insert(initialStatus.end(), l.status.begin(), l.status.end());
         out.edgeCells += l.edgeCells;
         out.cornerCells += l.cornerCells;
         out.rejected += l.rejected;
     }
-    const std::size_t proposed = all.size();
-    all = confirmedByNeighbours(std::move(all), h);
-    out.rejected += proposed - all.size();
+    std::vector<std::atomic<std::uint8_t>> status(proposals.size());
+    for (std::size_t i = 0; i < proposals.size(); ++i) status[i].store(initialStatus[i], std::memory_order_relaxed);
+    auto passes = [&](std::size_t i) {
+        std::uint8_t s = status[i].load(std::memory_order_relaxed);
+        if (s == kUnchecked) {
+            const Proposal& p = proposals[i];
+            const FieldCheck& check = checks[i];
+            s = nearSurface(p.point) && facesFlat(p.point, check) && solidBehind(p.point, check.behind) ? kPassed : kFailed;
+            status[i].store(s, std::memory_order_relaxed);
+        }
+        return s == kPassed;
+    };
+    std::vector<Proposal> all = confirmedByNeighbours(proposals, h, passes);
+    // (Each proposal not kept was rejected once: by its field checks or for want of a second view.)
+    out.rejected += proposals.size() - all.size();
     std::sort(all.begin(), all.end());
     // One proposal a node (the best), then corners before edges, so that an edge node never
     // takes the crossing a corner node needs.
@@ -550,25 +604,17 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // placed, not moved), has an edge to the other side (it keeps its side: no case changes)
     // and shares no crossing with a node placed across it. Only the first round flips nodes.
     std::sort(placedFirst.begin(), placedFirst.end(), [](const Proposal& x, const Proposal& y) { return x.node < y.node; });
-    // Keeps the candidates `keeps(candidate, trees)` accepts, deciding in parallel (each task
-    // reads the trees through its own accessors); their order stays.
-    struct Trees {
+    struct Trees { // one task's accessors
         openvdb::tree::ValueAccessor<const openvdb::Vec3STree> offsets;
         openvdb::tree::ValueAccessor<const openvdb::MaskTree> onSurface;
     };
-    auto filterAlong = [&](std::size_t grain, const auto& keeps) {
-        std::vector<std::uint8_t> keep(along.size(), 0);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), grain), [&](const tbb::blocked_range<std::size_t>& r) {
-            Trees trees{openvdb::tree::ValueAccessor<const openvdb::Vec3STree>(*deformation.offsets),
-                        openvdb::tree::ValueAccessor<const openvdb::MaskTree>(*deformation.onSurface)};
-            for (std::size_t i = r.begin(); i < r.end(); ++i) keep[i] = keeps(along[i], trees);
-        });
-        std::size_t kept = 0;
-        for (std::size_t i = 0; i < along.size(); ++i)
-            if (keep[i]) along[kept++] = along[i];
-        along.resize(kept);
+    auto makeTrees = [&] {
+        return Trees{openvdb::tree::ValueAccessor<const openvdb::Vec3STree>(*deformation.offsets),
+                     openvdb::tree::ValueAccessor<const openvdb::MaskTree>(*deformation.onSurface)};
     };
-    filterAlong(256, [&](const Proposal& e, Trees& trees) {
+    // Is e's node free, and does a node placed in the first round from another cell, next to it,
+    // lie on e's line?
+    auto onPlacedLine = [&](const Proposal& e, Trees& trees) {
         if (trees.offsets.isValueOn(e.node) || trees.onSurface.isValueOn(e.node)) return false;
         for (int z = -1; z <= 1; ++z)
             for (int y = -1; y <= 1; ++y)
@@ -581,7 +627,52 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                     if (distanceToLine(it->point, e.point, e.direction) <= kOnConfirmedLine * h) return true;
                 }
         return false;
+    };
+    // The candidates: the other nodes of an edge proposal's cell whose Ω its line crosses, where
+    // onPlacedLine holds, from every edge proposal that passes the field checks (confirmed or
+    // not: the placed node is the second view here). Only cells within two nodes of a placed node
+    // can have one; one probe of the dilated placements skips the others (most, on a noisy
+    // surface) before any geometry or field check.
+    openvdb::MaskTree nearPlaced(*deformation.onSurface);
+    openvdb::tools::dilateActiveValues(nearPlaced, 2, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::IGNORE_TILES);
+    tbb::enumerable_thread_specific<std::vector<Proposal>> alongLocal;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        Trees trees = makeTrees();
+        openvdb::tree::ValueAccessor<const openvdb::MaskTree> near(nearPlaced);
+        std::vector<Proposal>& mine = alongLocal.local();
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+            const Proposal& p = proposals[i];
+            if (p.kind != 1 || status[i].load(std::memory_order_relaxed) == kFailed || !near.isValueOn(p.cell)) continue;
+            for (int k = 0; k < 8; ++k) {
+                const Coord node = p.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+                if (node == p.node) continue;
+                const Vec3d rest = frame.nodeWorld(Vec3i(node.x(), node.y(), node.z()));
+                Vec3d q;
+                if (!closestOnLineInOmega(p.onLine, p.direction, rest, h, q)) continue;
+                Proposal e = p;
+                e.node = node;
+                e.point = q;
+                e.distance = length(q - rest);
+                e.inside = ((p.config >> k) & 1u) != 0;
+                if (onPlacedLine(e, trees) && passes(i)) mine.push_back(e);
+            }
+        }
     });
+    std::vector<Proposal> along;
+    for (const std::vector<Proposal>& l : alongLocal) along.insert(along.end(), l.begin(), l.end());
+    // Keeps the candidates `keeps(candidate, trees)` accepts, deciding in parallel (each task
+    // reads the trees through its own accessors); their order stays.
+    auto filterAlong = [&](std::size_t grain, const auto& keeps) {
+        std::vector<std::uint8_t> keep(along.size(), 0);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), grain), [&](const tbb::blocked_range<std::size_t>& r) {
+            Trees trees = makeTrees();
+            for (std::size_t i = r.begin(); i < r.end(); ++i) keep[i] = keeps(along[i], trees);
+        });
+        std::size_t kept = 0;
+        for (std::size_t i = 0; i < along.size(); ++i)
+            if (keep[i]) along[kept++] = along[i];
+        along.resize(kept);
+    };
     std::sort(along.begin(), along.end());
     along.erase(std::unique(along.begin(), along.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), along.end());
     // The field checks of the first round, for the nearest confirmed line of each node only.
