@@ -8,7 +8,6 @@
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
-#include <Eigen/Dense>
 #include <openvdb/tools/Morphology.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -99,17 +98,15 @@ struct FieldCheck {
 // any task; a pure function of the proposal, so a race writes the same value.
 enum : std::uint8_t { kUnchecked = 0, kPassed = 1, kFailed = 2 };
 
-inline Vec3d toVec(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
-inline Eigen::Vector3d toEigen(const Vec3d& v) { return {v.x, v.y, v.z}; }
-
-// The point where the three planes (c_i, n_i) meet, if the system is well conditioned.
+// The point where the three planes (c_i, n_i) meet, if the system is well conditioned. Cramer's
+// rule by cross products: with unit normals the determinant is the volume they span, bounded
+// below here, so the quotient loses at most three digits; the same answer as an LU solve to
+// within rounding, for a fraction of its cost.
 bool intersectPlanes(const Vec3d n[3], const double rhs[3], Vec3d& out) {
-    Eigen::Matrix3d A;
-    for (int i = 0; i < 3; ++i) A.row(i) = toEigen(n[i]).transpose();
-    Eigen::FullPivLU<Eigen::Matrix3d> lu(A);
-    // Unit normals: the determinant is the volume they span; below this the point runs off.
-    if (std::fabs(A.determinant()) < 1e-3) return false;
-    out = toVec(lu.solve(Eigen::Vector3d(rhs[0], rhs[1], rhs[2])));
+    const Vec3d c12 = cross(n[1], n[2]), c20 = cross(n[2], n[0]), c01 = cross(n[0], n[1]);
+    const double det = dot(n[0], c12);
+    if (!(std::fabs(det) >= 1e-3)) return false; // below this the point runs off
+    out = (c12 * rhs[0] + c20 * rhs[1] + c01 * rhs[2]) / det;
     return std::isfinite(out.x) && std::isfinite(out.y) && std::isfinite(out.z);
 }
 
