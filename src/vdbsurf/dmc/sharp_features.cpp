@@ -8,7 +8,6 @@
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
-#include <openvdb/tools/Morphology.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -609,49 +608,69 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return Trees{openvdb::tree::ValueAccessor<const openvdb::Vec3STree>(*deformation.offsets),
                      openvdb::tree::ValueAccessor<const openvdb::MaskTree>(*deformation.onSurface)};
     };
-    // Is e's node free, and does a node placed in the first round from another cell, next to it,
-    // lie on e's line?
-    auto onPlacedLine = [&](const Proposal& e, Trees& trees) {
-        if (trees.offsets.isValueOn(e.node) || trees.onSurface.isValueOn(e.node)) return false;
-        for (int z = -1; z <= 1; ++z)
-            for (int y = -1; y <= 1; ++y)
-                for (int x = -1; x <= 1; ++x) {
-                    const Coord nb = e.node.offsetBy(x, y, z);
-                    if (!trees.onSurface.isValueOn(nb)) continue;
-                    const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
-                                                     [](const Proposal& p, const Coord& c) { return p.node < c; });
-                    if (it == placedFirst.end() || it->node != nb || it->cell == e.cell) continue;
-                    if (distanceToLine(it->point, e.point, e.direction) <= kOnConfirmedLine * h) return true;
-                }
-        return false;
-    };
-    // The candidates: the other nodes of an edge proposal's cell whose Ω its line crosses, where
-    // onPlacedLine holds, from every edge proposal that passes the field checks (confirmed or
-    // not: the placed node is the second view here). Only cells within two nodes of a placed node
-    // can have one; one probe of the dilated placements skips the others (most, on a noisy
-    // surface) before any geometry or field check.
-    openvdb::MaskTree nearPlaced(*deformation.onSurface);
-    openvdb::tools::dilateActiveValues(nearPlaced, 2, openvdb::tools::NN_FACE_EDGE_VERTEX, openvdb::tools::IGNORE_TILES);
+    // The candidates: the other nodes of an edge proposal's cell whose Ω its line crosses, from
+    // every edge proposal that passes the field checks (confirmed or not: a placed node is the
+    // second view here), where the node is free and a node placed in the first round from another
+    // cell, next to it, lies on the line. Such a placed node lies in [C - 1, C + 2]^3 of the
+    // proposal's cell C: they are gathered once a proposal (a few at most), and a proposal with
+    // none on its line needs no field checks. First, the 4^3 blocks of cells with a placed node in
+    // reach are marked (dilating the placed nodes in OpenVDB cost more than the whole round): one
+    // probe skips most proposals of a noisy surface.
+    auto block = [](const Coord& c) { return Coord(c.x() >> 2, c.y() >> 2, c.z() >> 2); };
+    openvdb::MaskTree nearPlaced;
+    {
+        openvdb::tree::ValueAccessor<openvdb::MaskTree> mark(nearPlaced);
+        for (const Proposal& p : placedFirst) {
+            const Coord lo = block(p.node.offsetBy(-2)), hi = block(p.node.offsetBy(1));
+            for (int z = lo.z(); z <= hi.z(); ++z)
+                for (int y = lo.y(); y <= hi.y(); ++y)
+                    for (int x = lo.x(); x <= hi.x(); ++x) mark.setValueOn(Coord(x, y, z));
+        }
+    }
+    const double lineTolerance = kOnConfirmedLine * h;
     tbb::enumerable_thread_specific<std::vector<Proposal>> alongLocal;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
         Trees trees = makeTrees();
         openvdb::tree::ValueAccessor<const openvdb::MaskTree> near(nearPlaced);
         std::vector<Proposal>& mine = alongLocal.local();
+        const Proposal* onLine[64];
         for (std::size_t i = r.begin(); i < r.end(); ++i) {
             const Proposal& p = proposals[i];
-            if (p.kind != 1 || status[i].load(std::memory_order_relaxed) == kFailed || !near.isValueOn(p.cell)) continue;
+            if (p.kind != 1 || !near.isValueOn(block(p.cell))) continue;
+            // The candidates' points are other points of this line: a hair of slack for rounding
+            // keeps every node the exact test below may accept.
+            const double slack = 1e-9 * (h + std::max({std::fabs(p.onLine.x), std::fabs(p.onLine.y), std::fabs(p.onLine.z)}));
+            int count = 0;
+            for (int z = -1; z <= 2; ++z)
+                for (int y = -1; y <= 2; ++y)
+                    for (int x = -1; x <= 2; ++x) {
+                        const Coord nb = p.cell.offsetBy(x, y, z);
+                        if (!trees.onSurface.isValueOn(nb)) continue;
+                        const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
+                                                         [](const Proposal& q, const Coord& c) { return q.node < c; });
+                        if (it == placedFirst.end() || it->node != nb || it->cell == p.cell) continue;
+                        if (distanceToLine(it->point, p.onLine, p.direction) <= lineTolerance + slack) onLine[count++] = &*it;
+                    }
+            if (count == 0 || !passes(i)) continue;
             for (int k = 0; k < 8; ++k) {
                 const Coord node = p.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
-                if (node == p.node) continue;
+                if (node == p.node || trees.offsets.isValueOn(node) || trees.onSurface.isValueOn(node)) continue;
                 const Vec3d rest = frame.nodeWorld(Vec3i(node.x(), node.y(), node.z()));
                 Vec3d q;
                 if (!closestOnLineInOmega(p.onLine, p.direction, rest, h, q)) continue;
+                bool confirmed = false;
+                for (int j = 0; j < count && !confirmed; ++j) {
+                    const Coord d = onLine[j]->node - node;
+                    confirmed = std::abs(d.x()) <= 1 && std::abs(d.y()) <= 1 && std::abs(d.z()) <= 1 &&
+                                distanceToLine(onLine[j]->point, q, p.direction) <= lineTolerance;
+                }
+                if (!confirmed) continue;
                 Proposal e = p;
                 e.node = node;
                 e.point = q;
                 e.distance = length(q - rest);
                 e.inside = ((p.config >> k) & 1u) != 0;
-                if (onPlacedLine(e, trees) && passes(i)) mine.push_back(e);
+                mine.push_back(e);
             }
         }
     });
