@@ -202,8 +202,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
 
             if (nodeGradients) {
                 // The gradients' sample holds the leaf's node values too.
-                gradients.sample(field, frame, w.origin);
                 markLeafNodes(leaf, needed);
+                gradients.sample(field, frame, w.origin, needed);
                 gradients.leafValues(vals);
             } else {
                 sampleLeafNodes(field, frame, leaf, needed, vals);

@@ -50,16 +50,17 @@ private:
 class NodeGradients {
 public:
     // Values of the leaf's nodes at `origin` and of the nodes beside them (one sampleNodes call:
-    // a grid copies its leaf buffers).
-    // The gradients of all the leaf's nodes are computed here once: a node is a corner of up to
-    // eight cells, each of which reads its gradient (the per-cell edge test below took as long as
-    // the rest of the crossings' normals when each cell took differences of its own).
-    void sample(const Field& field, const LatticeFrame& frame, const openvdb::Coord& origin) {
+    // a grid copies its leaf buffers), and the gradients of the nodes `needed` marks (the corners
+    // of the leaf's cells), each once: a node is a corner of up to eight cells, and each of them
+    // reads its gradient.
+    void sample(const Field& field, const LatticeFrame& frame, const openvdb::Coord& origin,
+                const std::array<std::uint8_t, kLeafNodeCount>& needed) {
         field.sampleNodes(frame, {origin.x() - 1, origin.y() - 1, origin.z() - 1}, {kSide, kSide, kSide}, nullptr, mValues.data());
         std::size_t n = 0;
         for (int z = 0; z < kLeafNodesPerSide; ++z)
             for (int y = 0; y < kLeafNodesPerSide; ++y)
                 for (int x = 0; x < kLeafNodesPerSide; ++x, ++n) {
+                    if (!needed[n]) continue;
                     const std::size_t i = index(x, y, z);
                     double* g = mGradient[n];
                     for (std::size_t a = 0; a < 3; ++a) g[a] = (mValues[i + kStride[a]] - mValues[i - kStride[a]]) * 0.5;
@@ -117,8 +118,9 @@ private:
     static std::size_t index(int x, int y, int z) { return std::size_t((x + 1) + kSide * ((y + 1) + kSide * (z + 1))); }
 
     std::array<double, kCount> mValues;
-    double mGradient[kLeafNodeCount][3]; // per node of the leaf (leafNodeIndex), index units
-    double mSquared[kLeafNodeCount];     // their squared lengths
+    // Per needed node of the leaf (leafNodeIndex): gradient (index units) and its squared length.
+    double mGradient[kLeafNodeCount][3];
+    double mSquared[kLeafNodeCount];
 };
 
 } // namespace vdbsurf
