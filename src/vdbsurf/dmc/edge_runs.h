@@ -5,6 +5,7 @@
 // wide along it holds a sample, as in the thin search's Ω.
 #pragma once
 
+#include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/field/field.h"
 
 #include <openvdb/openvdb.h>
@@ -18,7 +19,7 @@ struct Lattice;
 
 struct LatticeDeformation;
 
-using OffsetAccessor = openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>;
+using OffsetAccessor = openvdb::tree::ValueAccessor<const OffsetTree, false>;
 
 // Where the nodes are now and on which side, read from a deformation by one thread: a node moved
 // by the thin search changed side, a node placed on a sharp feature has the side recorded for it.
@@ -29,7 +30,7 @@ struct NodeStates {
         return offsets.isValueOn(c) != restInside;
     }
     OffsetAccessor offsets;
-    openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> onSurface, insideOnSurface;
+    openvdb::tree::ValueAccessor<const NodeMaskTree, false> onSurface, insideOnSurface;
 };
 
 // One lattice step along `axis` (0-2), towards `sign` (-1 or 1; 2 or -2 for two steps).

@@ -254,7 +254,7 @@ void splitHiddenEdges(const Field& field, const Lattice& lattice, const ThinSear
     }
     const EdgeExaminer examiner(field, lattice, options.iso, options.steps);
     std::vector<Move> proposals = examineActiveCells(examiner, field, lattice, deformation, options.cancel, stats);
-    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
+    openvdb::tree::ValueAccessor<OffsetTree> acc(*deformation.offsets);
     for (int round = 0; round < kMaxRounds && !proposals.empty(); ++round) {
         if (options.cancel) options.cancel->check();
         // One move per node, and none next to a node moved this round.

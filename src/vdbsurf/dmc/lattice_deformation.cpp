@@ -7,25 +7,25 @@
 namespace vdbsurf {
 
 namespace {
-void activateAround(Lattice& lattice, openvdb::MaskTree& around, const openvdb::Coord& n) {
+// (Straight into the lattice's tree: a tree of the cells to add, united afterwards, allocated a
+// full set of internal nodes for a handful of cells.)
+void activateAround(Lattice& lattice, openvdb::tree::ValueAccessor<openvdb::MaskTree>& cells, const openvdb::Coord& n) {
     for (int d = 0; d < 8; ++d) {
         const openvdb::Coord c = n.offsetBy(-(d & 1), -((d >> 1) & 1), -((d >> 2) & 1));
-        if (lattice.cellRange.isInside(c)) around.setValueOn(c);
+        if (lattice.cellRange.isInside(c)) cells.setValueOn(c);
     }
 }
 } // namespace
 
 void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation) {
-    openvdb::MaskTree around(false);
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> cells(*lattice.cells);
     // Nodes placed on features have offsets too.
-    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) activateAround(lattice, around, it.getCoord());
-    lattice.cells->topologyUnion(around);
+    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) activateAround(lattice, cells, it.getCoord());
 }
 
 void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
-    openvdb::MaskTree around(false);
-    for (const Vec3i& n : nodes) activateAround(lattice, around, openvdb::Coord(n.x, n.y, n.z));
-    lattice.cells->topologyUnion(around);
+    openvdb::tree::ValueAccessor<openvdb::MaskTree> cells(*lattice.cells);
+    for (const Vec3i& n : nodes) activateAround(lattice, cells, openvdb::Coord(n.x, n.y, n.z));
 }
 
 void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
@@ -55,7 +55,10 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     // A cell's voxel sits at its min-corner node: the same index space as the nodes.
     cells->setTransform(xform->copy());
     auto surface = openvdb::MaskGrid::create(false);
-    surface->setTree(std::make_shared<openvdb::MaskTree>(*deformation.onSurface));
+    {
+        auto on = surface->getAccessor();
+        for (auto it = deformation.onSurface->cbeginValueOn(); it; ++it) on.setValueOn(it.getCoord());
+    }
     surface->setName("on_surface");
     surface->setTransform(xform->copy());
     for (openvdb::GridBase* g : std::initializer_list<openvdb::GridBase*>{offsets.get(), cells.get(), surface.get()})

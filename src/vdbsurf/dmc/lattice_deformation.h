@@ -3,8 +3,8 @@
 // never fold), and which nodes were placed on a sharp feature of the surface. A node on a feature
 // takes the iso value itself but keeps the side it had before it moved (insideOnSurface), so
 // the cell cases, and with them the mesh's topology, do not change: only the crossings on its
-// edges move onto it. Sparse VDB trees in lattice node index space: the offsets tree is what
-// --lattice-out writes.
+// edges move onto it. Sparse VDB trees in lattice node index space (with small internal nodes:
+// see SparseNodeTree); --lattice-out writes the offsets as a standard Vec3f grid.
 #pragma once
 #include "vdbsurf/core/lattice_frame.h"
 
@@ -20,10 +20,22 @@ namespace vdbsurf {
 
 struct Lattice;
 
+// Trees for the few nodes a deformation touches. OpenVDB's standard configuration (internal nodes
+// of 32^3 and 16^3 entries above 8^3 leaves) allocates and fills a 32^3-entry node per octant and
+// a 16^3-entry node per 128^3 block that holds a single moved node: the armadillo's 2,200 feature
+// nodes cost the three trees ~15 MB of fresh pages, more than its mesh, and meshing a grid once
+// (a fresh process) paid ~10 ms for them. Internal nodes of 8^3 entries at both levels cover the
+// same index space with far less.
+template <typename ValueT>
+using SparseNodeTree = openvdb::tree::Tree<
+    openvdb::tree::RootNode<openvdb::tree::InternalNode<openvdb::tree::InternalNode<openvdb::tree::LeafNode<ValueT, 3>, 3>, 3>>>;
+using OffsetTree = SparseNodeTree<openvdb::Vec3f>;
+using NodeMaskTree = SparseNodeTree<openvdb::ValueMask>;
+
 struct LatticeDeformation {
-    openvdb::Vec3STree::Ptr offsets = std::make_shared<openvdb::Vec3STree>(openvdb::Vec3f(0.0f));
-    openvdb::MaskTree::Ptr onSurface = std::make_shared<openvdb::MaskTree>(false);
-    openvdb::MaskTree::Ptr insideOnSurface = std::make_shared<openvdb::MaskTree>(false); // subset of onSurface
+    OffsetTree::Ptr offsets = std::make_shared<OffsetTree>(openvdb::Vec3f(0.0f));
+    NodeMaskTree::Ptr onSurface = std::make_shared<NodeMaskTree>(false);
+    NodeMaskTree::Ptr insideOnSurface = std::make_shared<NodeMaskTree>(false); // subset of onSurface
 
     bool empty() const { return offsets->empty() && onSurface->empty(); }
     std::uint64_t movedNodes() const { return offsets->activeVoxelCount(); }

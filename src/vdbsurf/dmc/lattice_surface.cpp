@@ -168,12 +168,12 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tasks, 8), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*lattice.cells);
-        std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>> offsetAcc;
-        std::unique_ptr<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>> surfaceAcc, insideAcc;
+        std::unique_ptr<openvdb::tree::ValueAccessor<const OffsetTree, false>> offsetAcc;
+        std::unique_ptr<openvdb::tree::ValueAccessor<const NodeMaskTree, false>> surfaceAcc, insideAcc;
         if (deformation) {
-            insideAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>>(*deformation->insideOnSurface);
-            offsetAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false>>(*deformation->offsets);
-            surfaceAcc = std::make_unique<openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>>(*deformation->onSurface);
+            insideAcc = std::make_unique<openvdb::tree::ValueAccessor<const NodeMaskTree, false>>(*deformation->insideOnSurface);
+            offsetAcc = std::make_unique<openvdb::tree::ValueAccessor<const OffsetTree, false>>(*deformation->offsets);
+            surfaceAcc = std::make_unique<openvdb::tree::ValueAccessor<const NodeMaskTree, false>>(*deformation->onSurface);
         }
         std::array<double, kLeafNodeCount> vals;
         std::array<std::uint8_t, kLeafNodeCount> needed;
@@ -439,8 +439,8 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
     const LatticeFrame& frame = im.lattice.frame;
     std::vector<std::uint64_t> movedPerLeaf(im.work.size(), 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> onSurface(*deformation.onSurface);
-        openvdb::tree::ValueAccessor<const openvdb::Vec3STree, false> offsets(*deformation.offsets);
+        openvdb::tree::ValueAccessor<const NodeMaskTree, false> onSurface(*deformation.onSurface);
+        openvdb::tree::ValueAccessor<const OffsetTree, false> offsets(*deformation.offsets);
         auto placed = [&](const Coord& n) {
             const openvdb::Vec3f o = offsets.getValue(n);
             return Vec3f(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(o.x(), o.y(), o.z()));

@@ -508,9 +508,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     };
     // One set of accessors for the serial loops below (bridging writes the trees in between:
     // cleared after it).
-    openvdb::tree::ValueAccessor<openvdb::Vec3STree> offsets(*deformation.offsets);
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface);
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> insideOnSurface(*deformation.insideOnSurface);
+    openvdb::tree::ValueAccessor<OffsetTree> offsets(*deformation.offsets);
+    openvdb::tree::ValueAccessor<NodeMaskTree> onSurface(*deformation.onSurface);
+    openvdb::tree::ValueAccessor<NodeMaskTree> insideOnSurface(*deformation.insideOnSurface);
     auto place = [&](const Proposal& p, bool inside) {
         const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
         const Vec3f off(p.point - rest);
@@ -601,12 +601,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // and shares no crossing with a node placed across it. Only the first round flips nodes.
     std::sort(placedFirst.begin(), placedFirst.end(), [](const Proposal& x, const Proposal& y) { return x.node < y.node; });
     struct Trees { // one task's accessors
-        openvdb::tree::ValueAccessor<const openvdb::Vec3STree> offsets;
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree> onSurface;
+        openvdb::tree::ValueAccessor<const OffsetTree> offsets;
+        openvdb::tree::ValueAccessor<const NodeMaskTree> onSurface;
     };
     auto makeTrees = [&] {
-        return Trees{openvdb::tree::ValueAccessor<const openvdb::Vec3STree>(*deformation.offsets),
-                     openvdb::tree::ValueAccessor<const openvdb::MaskTree>(*deformation.onSurface)};
+        return Trees{openvdb::tree::ValueAccessor<const OffsetTree>(*deformation.offsets),
+                     openvdb::tree::ValueAccessor<const NodeMaskTree>(*deformation.onSurface)};
     };
     // The candidates: the other nodes of an edge proposal's cell whose Ω its line crosses, from
     // every edge proposal that passes the field checks (confirmed or not: a placed node is the
@@ -617,9 +617,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // reach are marked (dilating the placed nodes in OpenVDB cost more than the whole round): one
     // probe skips most proposals of a noisy surface.
     auto block = [](const Coord& c) { return Coord(c.x() >> 2, c.y() >> 2, c.z() >> 2); };
-    openvdb::MaskTree nearPlaced;
+    NodeMaskTree nearPlaced;
     {
-        openvdb::tree::ValueAccessor<openvdb::MaskTree> mark(nearPlaced);
+        openvdb::tree::ValueAccessor<NodeMaskTree> mark(nearPlaced);
         for (const Proposal& p : placedFirst) {
             const Coord lo = block(p.node.offsetBy(-2)), hi = block(p.node.offsetBy(1));
             for (int z = lo.z(); z <= hi.z(); ++z)
@@ -631,7 +631,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     tbb::enumerable_thread_specific<std::vector<Proposal>> alongLocal;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
         Trees trees = makeTrees();
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree> near(nearPlaced);
+        openvdb::tree::ValueAccessor<const NodeMaskTree> near(nearPlaced);
         std::vector<Proposal>& mine = alongLocal.local();
         const Proposal* onLine[64];
         for (std::size_t i = r.begin(); i < r.end(); ++i) {

@@ -256,8 +256,8 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
         seen.swap(merged);
         if (!anchored) restore.insert(restore.end(), piece.begin(), piece.end());
     }
-    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> onSurface(*deformation.onSurface), insideOnSurface(*deformation.insideOnSurface);
+    openvdb::tree::ValueAccessor<OffsetTree> acc(*deformation.offsets);
+    openvdb::tree::ValueAccessor<NodeMaskTree> onSurface(*deformation.onSurface), insideOnSurface(*deformation.insideOnSurface);
     std::vector<Vec3i> restored;
     for (const Coord& c : restore) {
         acc.setValueOff(c, openvdb::Vec3f(0.0f));
@@ -312,7 +312,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     }
     if (options.cancel) options.cancel->check();
 
-    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
+    openvdb::tree::ValueAccessor<OffsetTree> acc(*deformation.offsets);
     std::vector<Coord> frontier = std::move(ambiguous), phaseOne;
     for (std::size_t ci = 0; ci < candidates.size(); ++ci) {
         local.samples += samples[ci];
@@ -391,7 +391,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     const Inside side = field.inside();
     const OmegaSearch searcher(field, lattice, iso, options.steps);
     const EdgeRuns edgeRuns(field, lattice, iso, options.steps);
-    openvdb::tree::ValueAccessor<openvdb::Vec3STree> acc(*deformation.offsets);
+    openvdb::tree::ValueAccessor<OffsetTree> acc(*deformation.offsets);
     std::vector<Coord> frontier;
     for (const Vec3i& v : from) frontier.emplace_back(v.x, v.y, v.z);
     std::uint64_t bridged = 0;
