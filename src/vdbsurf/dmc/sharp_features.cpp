@@ -633,7 +633,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         Trees trees = makeTrees();
         openvdb::tree::ValueAccessor<const NodeMaskTree> near(nearPlaced);
         std::vector<Proposal>& mine = alongLocal.local();
-        const Proposal* onLine[64];
+        const Proposal* placedOnLine[64];
         for (std::size_t i = r.begin(); i < r.end(); ++i) {
             const Proposal& p = proposals[i];
             if (p.kind != 1 || !near.isValueOn(block(p.cell))) continue;
@@ -649,7 +649,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                         const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
                                                          [](const Proposal& q, const Coord& c) { return q.node < c; });
                         if (it == placedFirst.end() || it->node != nb || it->cell == p.cell) continue;
-                        if (distanceToLine(it->point, p.onLine, p.direction) <= lineTolerance + slack) onLine[count++] = &*it;
+                        if (distanceToLine(it->point, p.onLine, p.direction) <= lineTolerance + slack) placedOnLine[count++] = &*it;
                     }
             if (count == 0 || !passes(i)) continue;
             for (int k = 0; k < 8; ++k) {
@@ -660,9 +660,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 if (!closestOnLineInOmega(p.onLine, p.direction, rest, h, q)) continue;
                 bool confirmed = false;
                 for (int j = 0; j < count && !confirmed; ++j) {
-                    const Coord d = onLine[j]->node - node;
+                    const Coord d = placedOnLine[j]->node - node;
                     confirmed = std::abs(d.x()) <= 1 && std::abs(d.y()) <= 1 && std::abs(d.z()) <= 1 &&
-                                distanceToLine(onLine[j]->point, q, p.direction) <= lineTolerance;
+                                distanceToLine(placedOnLine[j]->point, q, p.direction) <= lineTolerance;
                 }
                 if (!confirmed) continue;
                 Proposal e = p;
