@@ -17,8 +17,6 @@ namespace vdbsurf {
 
 struct Lattice;
 
-struct LatticeDeformation;
-
 using OffsetAccessor = openvdb::tree::ValueAccessor<const OffsetTree, false>;
 
 // Where the nodes are now and on which side, read from a deformation by one thread: a node moved

@@ -265,6 +265,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         if (!(len > 1e-9)) return false;
         return isInside(field.value(feature - outward * (kMinThickness * h / len)), iso, side);
     };
+    // The field checks of a proposal's point (see FieldCheck).
+    auto passesFieldChecks = [&](const Vec3d& point, const FieldCheck& check) {
+        return nearSurface(point) && facesFlat(point, check) && solidBehind(point, check.behind);
+    };
 
     // Cells whose corner gradients rule out an edge below the surface's sharpEdgeCosine (the
     // mesher sets it to options.edgeThreshold) are skipped without gathering their crossings.
@@ -309,7 +313,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // Records a proposal whose geometry stands. Its field checks are made now (`defer` false:
         // the cell's further proposals depend on them), or when a neighbour confirms it.
         auto record = [&](const Proposal& p, const FieldCheck& check, bool defer) {
-            if (!defer && !(nearSurface(p.point) && facesFlat(p.point, check) && solidBehind(p.point, check.behind))) {
+            if (!defer && !passesFieldChecks(p.point, check)) {
                 ++local.rejected;
                 return false;
             }
@@ -459,23 +463,23 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     SharpStats out;
     std::vector<Proposal> proposals;
     std::vector<FieldCheck> checks;
-    std::vector<std::uint8_t> initialStatus;
     for (Local& l : locals) {
         proposals.insert(proposals.end(), l.proposals.begin(), l.proposals.end());
         checks.insert(checks.end(), l.checks.begin(), l.checks.end());
-        initialStatus.insert(initialStatus.end(), l.status.begin(), l.status.end());
         out.edgeCells += l.edgeCells;
         out.cornerCells += l.cornerCells;
         out.rejected += l.rejected;
     }
     std::vector<std::atomic<std::uint8_t>> status(proposals.size());
-    for (std::size_t i = 0; i < proposals.size(); ++i) status[i].store(initialStatus[i], std::memory_order_relaxed);
+    {
+        std::size_t i = 0; // in the order the proposals were merged
+        for (const Local& l : locals)
+            for (std::uint8_t v : l.status) status[i++].store(v, std::memory_order_relaxed);
+    }
     auto passes = [&](std::size_t i) {
         std::uint8_t s = status[i].load(std::memory_order_relaxed);
         if (s == kUnchecked) {
-            const Proposal& p = proposals[i];
-            const FieldCheck& check = checks[i];
-            s = nearSurface(p.point) && facesFlat(p.point, check) && solidBehind(p.point, check.behind) ? kPassed : kFailed;
+            s = passesFieldChecks(proposals[i].point, checks[i]) ? kPassed : kFailed;
             status[i].store(s, std::memory_order_relaxed);
         }
         return s == kPassed;
@@ -600,14 +604,6 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // placed, not moved), has an edge to the other side (it keeps its side: no case changes)
     // and shares no crossing with a node placed across it. Only the first round flips nodes.
     std::sort(placedFirst.begin(), placedFirst.end(), [](const Proposal& x, const Proposal& y) { return x.node < y.node; });
-    struct Trees { // one task's accessors
-        openvdb::tree::ValueAccessor<const OffsetTree> offsets;
-        openvdb::tree::ValueAccessor<const NodeMaskTree> onSurface;
-    };
-    auto makeTrees = [&] {
-        return Trees{openvdb::tree::ValueAccessor<const OffsetTree>(*deformation.offsets),
-                     openvdb::tree::ValueAccessor<const NodeMaskTree>(*deformation.onSurface)};
-    };
     // The candidates: the other nodes of an edge proposal's cell whose Ω its line crosses, from
     // every edge proposal that passes the field checks (confirmed or not: a placed node is the
     // second view here), where the node is free and a node placed in the first round from another
@@ -630,8 +626,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     const double lineTolerance = kOnConfirmedLine * h;
     tbb::enumerable_thread_specific<std::vector<Proposal>> alongLocal;
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
-        Trees trees = makeTrees();
-        openvdb::tree::ValueAccessor<const NodeMaskTree> near(nearPlaced);
+        openvdb::tree::ValueAccessor<const OffsetTree> moved(*deformation.offsets);
+        openvdb::tree::ValueAccessor<const NodeMaskTree> placed(*deformation.onSurface), near(nearPlaced);
         std::vector<Proposal>& mine = alongLocal.local();
         const Proposal* placedOnLine[64];
         for (std::size_t i = r.begin(); i < r.end(); ++i) {
@@ -645,7 +641,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 for (int y = -1; y <= 2; ++y)
                     for (int x = -1; x <= 2; ++x) {
                         const Coord nb = p.cell.offsetBy(x, y, z);
-                        if (!trees.onSurface.isValueOn(nb)) continue;
+                        if (!placed.isValueOn(nb)) continue;
                         const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
                                                          [](const Proposal& q, const Coord& c) { return q.node < c; });
                         if (it == placedFirst.end() || it->node != nb || it->cell == p.cell) continue;
@@ -654,7 +650,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             if (count == 0 || !passes(i)) continue;
             for (int k = 0; k < 8; ++k) {
                 const Coord node = p.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
-                if (node == p.node || trees.offsets.isValueOn(node) || trees.onSurface.isValueOn(node)) continue;
+                if (node == p.node || moved.isValueOn(node) || placed.isValueOn(node)) continue;
                 const Vec3d rest = frame.nodeWorld(Vec3i(node.x(), node.y(), node.z()));
                 Vec3d q;
                 if (!closestOnLineInOmega(p.onLine, p.direction, rest, h, q)) continue;
@@ -676,23 +672,20 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     });
     std::vector<Proposal> along;
     for (const std::vector<Proposal>& l : alongLocal) along.insert(along.end(), l.begin(), l.end());
-    // Keeps the candidates `keeps(candidate, trees)` accepts, deciding in parallel (each task
-    // reads the trees through its own accessors); their order stays.
-    auto filterAlong = [&](std::size_t grain, const auto& keeps) {
+    std::sort(along.begin(), along.end());
+    along.erase(std::unique(along.begin(), along.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), along.end());
+    // The field checks of the first round, for the nearest confirmed line of each node only
+    // (decided in parallel; the order stays).
+    {
         std::vector<std::uint8_t> keep(along.size(), 0);
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), grain), [&](const tbb::blocked_range<std::size_t>& r) {
-            Trees trees = makeTrees();
-            for (std::size_t i = r.begin(); i < r.end(); ++i) keep[i] = keeps(along[i], trees);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, along.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i < r.end(); ++i) keep[i] = nearSurface(along[i].point) && solidBehind(along[i].point, along[i].outward);
         });
         std::size_t kept = 0;
         for (std::size_t i = 0; i < along.size(); ++i)
             if (keep[i]) along[kept++] = along[i];
         along.resize(kept);
-    };
-    std::sort(along.begin(), along.end());
-    along.erase(std::unique(along.begin(), along.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), along.end());
-    // The field checks of the first round, for the nearest confirmed line of each node only.
-    filterAlong(64, [&](const Proposal& e, Trees&) { return nearSurface(e.point) && solidBehind(e.point, e.outward); });
+    }
     const std::vector<std::uint8_t> alongNeighbours = sampleNeighbours(along);
     for (std::size_t i = 0; i < along.size(); ++i) {
         bool sharesCrossing = false;
