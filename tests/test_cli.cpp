@@ -120,6 +120,51 @@ TEST_CASE("the same input at 1 and 2 threads gives byte-identical files") {
     CHECK(a == b);
 }
 
+TEST_CASE("unnamed grids are meshed and small valid files are read as valid") {
+    test::TempDir dir;
+    initializeOpenVdb();
+    // OpenVDB's own tools (createLevelSetSphere, many converters) leave grids unnamed.
+    auto unnamed = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.1);
+    unnamed->setName("");
+    test::writeGrids(dir.path("unnamed.vdb"), {unnamed});
+    const auto r = runVdbsurf({"mesh", dir.path("unnamed.vdb"), "-o", dir.path("u.obj")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("using grid (unnamed)") != std::string::npos);
+    CHECK(test::fileExists(dir.path("u.obj")));
+    const auto c = runVdbsurf({"-q", "compare", dir.path("unnamed.vdb")});
+    INFO(c.output);
+    CHECK(c.exitCode == 0);
+
+    // A box of tiles alone, no voxels.
+    auto tiles = openvdb::FloatGrid::create(0.f);
+    tiles->setName("box");
+    tiles->setGridClass(openvdb::GRID_FOG_VOLUME);
+    tiles->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
+    tiles->tree().fill(openvdb::CoordBBox({0, 0, 0}, {127, 127, 127}), 1.f, true); // one 128³ tile
+    tiles->tree().prune();
+    test::writeGrids(dir.path("tiles.vdb"), {tiles});
+    REQUIRE(runVdbsurf({"-q", "info", dir.path("tiles.vdb")}).exitCode == 0);
+    REQUIRE(runVdbsurf({"-q", "mesh", dir.path("tiles.vdb"), "-o", dir.path("t.obj")}).exitCode == 0);
+    const Mesh box = readMesh(dir.path("t.obj"));
+    CHECK(checkTopology(box).closedManifoldOriented());
+    // The 0.5 surface of 128 voxels runs half a voxel outside their centres: 12.8 wide.
+    CHECK(box.bounds().extent().x == Approx(12.8).margin(1e-4));
+
+    // An empty grid is valid: it is listed, and meshing it says it is empty (not "damaged"). Its
+    // file is smaller than a file stream's buffer (8 KiB), which the reader once took for damage.
+    auto empty = openvdb::FloatGrid::create(0.f);
+    empty->setName("nothing");
+    test::writeGrids(dir.path("empty.vdb"), {empty});
+    REQUIRE(std::filesystem::file_size(dir.path("empty.vdb")) < 8192);
+    const auto i = runVdbsurf({"info", dir.path("empty.vdb")});
+    INFO(i.output);
+    CHECK(i.exitCode == 0);
+    CHECK(i.output.find("nothing") != std::string::npos);
+    expectFailure(dir, {"mesh", dir.path("empty.vdb"), "-o", dir.path("e.obj")}, dir.path("empty.vdb"), "is empty",
+                  dir.files());
+}
+
 TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output") {
     test::TempDir dir;
     writeSphereFile(dir.path("good.vdb"));

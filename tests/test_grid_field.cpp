@@ -1,13 +1,17 @@
-// GridField: trilinear sampling, conservative bounds, domain, classes and bad grids.
+// GridField: trilinear sampling, conservative bounds, domain, classes and bad grids; grids read
+// from files, whatever layout OpenVDB wrote them in, and damaged files refused before they are read.
 #include "support/test_support.h"
 
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/field/grid_field.h"
 #include "vdbsurf/vdb/vdb_file.h"
+#include "vdbsurf/vdb/vdb_layout.h"
 
 #include <catch2/catch.hpp>
 #include <openvdb/openvdb.h>
 
+#include <cstring>
+#include <fstream>
 #include <random>
 
 using namespace vdbsurf;
@@ -222,4 +226,115 @@ TEST_CASE("bad grids are refused with a message naming them") {
     auto dbl = openvdb::DoubleGrid::create(1.0);
     dbl->tree().setValue({0, 0, 0}, -1.0);
     CHECK_NOTHROW(GridField(dbl, "double"));
+}
+
+namespace {
+
+// A tree with every kind of node content a writer meets: a root tile, tiles in both internal
+// levels, full leaves, and leaves whose inactive values are the ±background, one other value,
+// two other values, or many (OpenVDB's six value-compression cases).
+template <typename GridT>
+typename GridT::Ptr everyNodeKind(typename GridT::ValueType background, typename GridT::ValueType other,
+                                  typename GridT::ValueType third) {
+    using V = typename GridT::ValueType;
+    auto g = GridT::create(background);
+    auto& t = g->tree();
+    t.addTile(3, {4096, 0, 0}, other, true); // a root tile
+    t.addTile(2, {0, 0, 128}, other, false);
+    t.addTile(1, {0, 8, 0}, third, true);
+    auto acc = g->getAccessor();
+    for (int i = 0; i < 8; ++i)
+        for (int j = 0; j < 8; ++j)
+            for (int k = 0; k < 8; ++k) {
+                const int n = i * 64 + j * 8 + k;
+                const V v = V(n % 7) * other + V(n % 3) * third;
+                acc.setValue({i + 16, j, k}, v);                                 // all active
+                acc.setValue({i + 24, j, k}, v);                                 // inactive: ±background
+                if (n % 2) acc.setValueOff({i + 24, j, k}, n % 4 == 1 ? background : -background);
+                acc.setValue({i + 32, j, k}, v);                                 // inactive: one other value
+                if (n % 2) acc.setValueOff({i + 32, j, k}, other);
+                acc.setValue({i + 40, j, k}, v);                                 // inactive: two other values
+                if (n % 2) acc.setValueOff({i + 40, j, k}, n % 4 == 1 ? other : third);
+                acc.setValue({i + 48, j, k}, v);                                 // inactive: many values
+                if (n % 2) acc.setValueOff({i + 48, j, k}, v + other);
+            }
+    acc.setValue({-3000, 5, 9}, other); // a second root child
+    return g;
+}
+
+void writeWithCompression(const std::string& path, openvdb::GridBase::Ptr grid, std::uint32_t compression) {
+    openvdb::io::File file(path);
+    file.setCompression(compression);
+    file.write(openvdb::GridPtrVec{grid});
+    file.close();
+}
+
+} // namespace
+
+TEST_CASE("every tree layout OpenVDB writes is read: value types, half floats, compressions") {
+    initializeOpenVdb();
+    test::TempDir dir;
+    using openvdb::io::COMPRESS_ACTIVE_MASK;
+    const std::uint32_t compressions[] = {openvdb::io::COMPRESS_NONE, openvdb::io::COMPRESS_ZIP,
+                                          openvdb::io::COMPRESS_ZIP | COMPRESS_ACTIVE_MASK, openvdb::io::COMPRESS_BLOSC,
+                                          openvdb::io::COMPRESS_BLOSC | COMPRESS_ACTIVE_MASK, COMPRESS_ACTIVE_MASK};
+    std::vector<openvdb::GridBase::Ptr> grids = {
+        everyNodeKind<openvdb::FloatGrid>(3.f, 0.25f, -1.5f), everyNodeKind<openvdb::DoubleGrid>(3.0, 0.25, -1.5),
+        everyNodeKind<openvdb::Int32Grid>(3, 5, -7), everyNodeKind<openvdb::Int64Grid>(3, 5, -7),
+        everyNodeKind<openvdb::Vec3SGrid>(openvdb::Vec3s(3, 0, 1), openvdb::Vec3s(0.25f, 1, 2), openvdb::Vec3s(-1.5f, 0, 3)),
+        everyNodeKind<openvdb::Vec3DGrid>(openvdb::Vec3d(3, 0, 1), openvdb::Vec3d(0.25, 1, 2), openvdb::Vec3d(-1.5, 0, 3))};
+    int read = 0;
+    for (auto& grid : grids)
+        for (const bool half : {false, true})
+            for (const std::uint32_t c : compressions) {
+                grid->setSaveFloatAsHalf(half);
+                grid->setName("g");
+                const std::string path = dir.path("layout.vdb");
+                writeWithCompression(path, grid, c);
+                INFO(grid->valueType() << (half ? " as half" : "") << ", compression " << c);
+                const std::vector<GridSummary> s = summarizeVdbFile(path, /*verify=*/true); // reads the grid
+                REQUIRE(s.size() == 1);
+                CHECK(s[0].activeVoxels == grid->activeVoxelCount());
+                if (grid->isType<openvdb::FloatGrid>() || grid->isType<openvdb::DoubleGrid>()) {
+                    const LoadedGrid g = readScalarGrid(path, "g");
+                    CHECK(g.grid->activeVoxelCount() == grid->activeVoxelCount());
+                }
+                ++read;
+            }
+    CHECK(read == 72);
+}
+
+TEST_CASE("a value chunk whose stated length overruns its node is refused before OpenVDB reads it") {
+    // OpenVDB 10 copies an uncompressed chunk into a buffer of the node's size before comparing
+    // the stated length with it: without the tree walk this file overruns the heap.
+    initializeOpenVdb();
+    test::TempDir dir;
+    auto fog = openvdb::FloatGrid::create(0.f);
+    fog->setName("density");
+    fog->setGridClass(openvdb::GRID_FOG_VOLUME);
+    fog->setSaveFloatAsHalf(true);
+    auto acc = fog->getAccessor();
+    for (int i = 0; i < 16; ++i)
+        for (int j = 0; j < 16; ++j)
+            for (int k = 0; k < 16; ++k) acc.setValue({i, j, k}, float((i * 7 + j * 3 + k) % 11) / 10.f);
+    const std::string path = dir.path("damaged.vdb");
+    writeWithCompression(path, fog, openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
+    REQUIRE_NOTHROW(readScalarGrid(path, ""));
+
+    // The first leaf's buffer: its value mask, the compression marker (0: every value stored),
+    // then the chunk's stated length. Say the chunk is 4096 uncompressed bytes; 512 halves are 1024.
+    const std::int64_t at = checkVdbLayout(path).grids.at(0).blockPos + 64 + 1;
+    std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+    std::int64_t stated = 0;
+    f.seekg(at - 1);
+    REQUIRE(f.get() == 0);
+    f.read(reinterpret_cast<char*>(&stated), 8);
+    REQUIRE((stated > 0 || stated == -1024));
+    const std::int64_t damaged = -4096;
+    f.seekp(at);
+    f.write(reinterpret_cast<const char*>(&damaged), 8);
+    f.close();
+    CHECK_THROWS_WITH(readScalarGrid(path, ""), Catch::Contains("damaged.vdb") && Catch::Contains("is damaged") &&
+                                                    Catch::Contains("4096 uncompressed bytes where the node holds 1024"));
+    CHECK_THROWS_WITH(summarizeVdbFile(path, true), Catch::Contains("is damaged"));
 }

@@ -61,7 +61,7 @@ void runCompare(const CompareOptions& o) {
     if (o.inside == "above") inside = Inside::Above;
 
     const LoadedGrid loaded = readScalarGrid(o.input, o.grid);
-    const std::string source = o.input + ":" + loaded.name;
+    const std::string source = loaded.source;
     const GridField field(loaded.grid, source, inside);
     note(loaded.note + ", " + field.gridClass() + "; " + field.insideReason());
 

@@ -83,7 +83,7 @@ void runMesh(const MeshOptions& o) {
     }
     if (!field) {
         const LoadedGrid loaded = readScalarGrid(o.input, o.grid);
-        source = o.input + ":" + loaded.name;
+        source = loaded.source;
         auto gf = std::make_unique<GridField>(loaded.grid, source, inside);
         note(loaded.note + ", " + gf->gridClass() + "; " + gf->insideReason());
         field = std::move(gf);

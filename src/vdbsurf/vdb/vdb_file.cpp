@@ -4,6 +4,7 @@
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/vdb/allocation_cap.h"
 #include "vdbsurf/vdb/vdb_layout.h"
+#include "vdbsurf/vdb/vdb_tree_layout.h"
 
 #include <openvdb/openvdb.h>
 
@@ -31,6 +32,9 @@ std::string className(openvdb::GridClass c) {
     }
 }
 
+// How messages name a grid; unnamed grids are common (OpenVDB's own tools write them).
+std::string gridLabel(const std::string& name) { return name.empty() ? "(unnamed)" : "'" + name + "'"; }
+
 bool isScalarType(const openvdb::GridBase& g) {
     return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>();
 }
@@ -51,7 +55,7 @@ public:
         if (probe.gcount() < 8 || !(magic[0] == 0x20 && magic[1] == 0x42 && magic[2] == 0x44 && magic[3] == 0x56))
             throw Error(path, "is not an OpenVDB file");
         mSize = std::size_t(fs::file_size(path, ec));
-        checkVdbLayout(path);
+        mLayout = checkVdbLayout(path);
         try {
             AllocationCap cap(structureCap());
             mFile.open(/*delayLoad=*/false);
@@ -77,23 +81,29 @@ public:
         }
     }
     openvdb::GridBase::Ptr read(const std::string& name) {
+        // Descriptors' unique names add "\x1e<n>" to names that repeat; OpenVDB reads by either.
+        for (const VdbGridExtent& g : mLayout.grids)
+            if (g.name == name || g.name.substr(0, g.name.find('\x1e')) == name) checkGridTreeLayout(mPath, mLayout, g);
         try {
             // Leaf buffers and node tables are small; no single block of a grid can need more
             // than many times the file's size, even decompressed.
             AllocationCap cap(std::max<std::size_t>(mSize * 64, std::size_t(256) << 20));
             return mFile.readGrid(name);
         } catch (const std::bad_alloc&) {
-            throw Error(mPath, "grid '" + name + "' cannot be read: the file is damaged or truncated");
+            throw Error(mPath, "grid " + gridLabel(name) + " cannot be read: the file is damaged or truncated");
         } catch (const std::exception& e) {
-            throw Error(mPath, "grid '" + name + "' cannot be read (file damaged or truncated): " + e.what());
+            throw Error(mPath, "grid " + gridLabel(name) + " cannot be read (file damaged or truncated): " + e.what());
         }
     }
 
 private:
-    // Strings, metadata and descriptors are stored whole in the file: none can exceed it.
-    std::size_t structureCap() const { return std::max<std::size_t>(mSize, 4096); }
+    // Strings, metadata and descriptors are stored whole in the file: none can exceed it. The
+    // floor leaves room for the reader's own buffers (a file stream's is 8 KiB, more than a
+    // small file holds), far below what a garbage length asks for.
+    std::size_t structureCap() const { return std::max<std::size_t>(mSize, std::size_t(16) << 20); }
 
     std::string mPath;
+    VdbLayout mLayout;
     openvdb::io::File mFile;
     std::size_t mSize = 0;
 };
@@ -102,7 +112,7 @@ std::string gridList(const openvdb::GridPtrVec& grids) {
     std::string s;
     for (const auto& g : grids) {
         if (!s.empty()) s += ", ";
-        s += "'" + g->getName() + "' (" + g->valueType() + ")";
+        s += gridLabel(g->getName()) + " (" + g->valueType() + ")";
     }
     return s.empty() ? "none" : s;
 }
@@ -158,29 +168,32 @@ LoadedGrid readScalarGrid(const std::string& path, const std::string& name) {
     OpenedFile f(path);
     const auto grids = f.metadata();
     if (grids->empty()) throw Error(path, "holds no grids");
-    std::string chosen;
+    std::string chosen; // "" names an unnamed grid
+    bool found = false;
     if (!name.empty()) {
         for (const auto& g : *grids)
-            if (g->getName() == name) chosen = name;
-        if (chosen.empty()) throw Error(path, "no grid named '" + name + "'; grids: " + gridList(*grids));
+            if (g->getName() == name) found = true;
+        chosen = name;
+        if (!found) throw Error(path, "no grid named '" + name + "'; grids: " + gridList(*grids));
         for (const auto& g : *grids) {
             if (g->getName() == name && !isScalarType(*g))
                 throw Error(path, "grid '" + name + "' holds " + g->valueType() +
                                       " values; vdbsurf meshes float or double grids. Grids: " + gridList(*grids));
         }
-        note = "using grid '" + chosen + "'";
+        note = "using grid " + gridLabel(chosen);
     } else {
         int scalars = 0;
         for (const auto& g : *grids) {
             if (!isScalarType(*g)) continue;
-            if (chosen.empty()) chosen = g->getName();
+            if (!found) chosen = g->getName();
+            found = true;
             ++scalars;
         }
-        if (chosen.empty()) throw Error(path, "holds no float or double grid to mesh; grids: " + gridList(*grids));
-        note = "using grid '" + chosen + "'" +
+        if (!found) throw Error(path, "holds no float or double grid to mesh; grids: " + gridList(*grids));
+        note = "using grid " + gridLabel(chosen) +
                (scalars == 1 ? " (the only scalar grid)" : " (the first of " + std::to_string(scalars) + " scalar grids; choose with --grid)");
     }
-    return {f.read(chosen), chosen, note};
+    return {f.read(chosen), chosen, note, chosen.empty() ? path : path + ":" + chosen};
 }
 
 void writeVdbFile(const std::string& path, const std::vector<GridBasePtr>& grids) {

@@ -31,7 +31,8 @@ std::vector<GridSummary> summarizeVdbFile(const std::string& path, bool verify =
 struct LoadedGrid {
     GridBasePtr grid;
     std::string name;
-    std::string note; // which grid was picked and why
+    std::string note;   // which grid was picked and why
+    std::string source; // how messages name it: "file.vdb:name", or the file alone for an unnamed grid
 };
 
 // Reads the grid to mesh: by name, or the first float/double grid when name is empty. Throws

@@ -70,8 +70,12 @@ VdbLayout checkVdbLayout(const std::string& path) {
     VdbLayout out;
     r.skip(8, "header"); // magic number, checked by the caller
     out.fileVersion = r.read<std::uint32_t>("header");
-    if (out.fileVersion < kLibraryVersionStored) r.skip(8, "header"); // old minor/patch numbers
-    else r.skip(8, "header");                                          // library major/minor
+    if (out.fileVersion < kLibraryVersionStored) {
+        r.skip(8, "header"); // old minor/patch numbers
+    } else {
+        out.libraryMajor = r.read<std::uint32_t>("header");
+        out.libraryMinor = r.read<std::uint32_t>("header");
+    }
     out.hasGridOffsets = true;
     if (out.fileVersion >= kGridOffsetsFlag) out.hasGridOffsets = r.read<char>("header") != 0;
     if (out.fileVersion >= kSelectiveCompression && out.fileVersion < kNodeMaskCompression) r.skip(1, "header");
@@ -90,8 +94,13 @@ VdbLayout checkVdbLayout(const std::string& path) {
     for (std::int32_t i = 0; i < gridCount; ++i) {
         VdbGridExtent g;
         g.name = r.string("grid descriptor");
-        r.string("grid descriptor"); // type name
-        if (out.fileVersion >= kGridInstancing) r.string("grid descriptor");
+        g.treeType = r.string("grid descriptor");
+        const std::string half = "_HalfFloat"; // OpenVDB's suffix for grids saved as half floats
+        if (g.treeType.size() > half.size() && g.treeType.compare(g.treeType.size() - half.size(), half.size(), half) == 0) {
+            g.treeType.resize(g.treeType.size() - half.size());
+            g.halfFloat = true;
+        }
+        if (out.fileVersion >= kGridInstancing) g.instance = !r.string("grid descriptor").empty(); // instance parent
         g.gridPos = r.read<std::int64_t>("grid descriptor");
         g.blockPos = r.read<std::int64_t>("grid descriptor");
         g.endPos = r.read<std::int64_t>("grid descriptor");

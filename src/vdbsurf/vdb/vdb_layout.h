@@ -10,12 +10,16 @@
 namespace vdbsurf {
 
 struct VdbGridExtent {
-    std::string name;   // the descriptor's unique name
+    std::string name;     // the descriptor's unique name
+    std::string treeType; // e.g. "Tree_float_5_4_3", without the half-float suffix
+    bool halfFloat = false; // values stored as 16-bit floats
+    bool instance = false;  // shares another grid's tree: no tree of its own in the file
     std::int64_t gridPos = 0, blockPos = 0, endPos = 0;
 };
 
 struct VdbLayout {
     std::uint32_t fileVersion = 0;
+    std::uint32_t libraryMajor = 0, libraryMinor = 0; // of the library that wrote it
     bool hasGridOffsets = false; // files written as streams carry no offsets: nothing to check
     std::vector<VdbGridExtent> grids;
 };
