@@ -341,6 +341,13 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
     expectFailure(dir, {"rasterize", dir.path("missing.json"), "-o", dir.path("bad.vdb"), "--voxel-size", "0.05"}, "missing.json",
                   "cannot open", now);
     expectFailure(dir, {"rasterize", scene, "-o", dir.path("bad.vdb")}, "--voxel-size", "required", now);
+    // Below about 1.44e-5 OpenVDB's transforms refuse the scale (an ArithmeticError naming nothing).
+    expectFailure(dir, {"rasterize", scene, "-o", dir.path("bad.vdb"), "--voxel-size", "1e-5"}, "--voxel-size",
+                  "cannot be stored in a .vdb grid", now);
+    expectFailure(dir,
+                  {"mesh", "--expr", "x^2+y^2+z^2-1e-8", "--bbox", "-2e-4,-2e-4,-2e-4,2e-4,2e-4,2e-4", "--voxel-size", "1e-5",
+                   "-o", dir.path("bad.vdb")},
+                  "bad.vdb", "cannot be stored in a .vdb grid", now);
     expectFailure(dir, {"edit", dir.path("d.vdb"), "--set", "5.center=0,0,0", "-o", dir.path("bad.vdb")}, "5.center", "no primitive 5",
                   now);
     expectFailure(dir, {"edit", dir.path("d.vdb"), "--set", "0.radii=1,0,1", "-o", dir.path("bad.vdb")}, "0.radii",

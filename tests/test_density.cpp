@@ -183,6 +183,36 @@ TEST_CASE("scene bounds contain every sampled value over random boxes, and the g
     }
 }
 
+namespace {
+
+// Voxels (within 3 of the scene's range) where the raster differs from dense evaluation, in value
+// or in being active; also how many dense values are positive.
+std::size_t differencesFromDense(const DensityScene& scene, double h, const openvdb::FloatGrid& grid, std::size_t& positive,
+                                 std::size_t& voxels) {
+    Vec3i first, last;
+    sceneVoxelRange(scene, h, first, last);
+    first = first - Vec3i(3, 3, 3);
+    last = last + Vec3i(3, 3, 3);
+    const Vec3i dims = last - first + Vec3i(1, 1, 1);
+    std::vector<float> dense(std::size_t(dims.x) * dims.y * dims.z);
+    evaluateDense(scene, h, first, dims, dense.data());
+    auto acc = grid.getConstAccessor();
+    std::size_t wrong = 0;
+    positive = 0;
+    voxels = dense.size();
+    for (int k = 0; k < dims.z; ++k)
+        for (int j = 0; j < dims.y; ++j)
+            for (int i = 0; i < dims.x; ++i) {
+                const openvdb::Coord c(first.x + i, first.y + j, first.z + k);
+                const float v = dense[(std::size_t(k) * dims.y + j) * dims.x + i];
+                positive += v > 0;
+                wrong += acc.getValue(c) != v || acc.isValueOn(c) != (v > 0);
+            }
+    return wrong;
+}
+
+} // namespace
+
 TEST_CASE("sparse rasterization equals dense evaluation at every voxel") {
     initializeOpenVdb();
     const DensityScene scene(testScene(), "test");
@@ -193,27 +223,49 @@ TEST_CASE("sparse rasterization equals dense evaluation at every voxel") {
     const auto grid = floatGrid(raster.grid());
     CHECK(grid->getName() == "density");
     CHECK(grid->getGridClass() == openvdb::GRID_FOG_VOLUME);
-    Vec3i first, last;
-    sceneVoxelRange(scene, h, first, last);
-    first = first - Vec3i(3, 3, 3);
-    last = last + Vec3i(3, 3, 3);
-    const Vec3i dims = last - first + Vec3i(1, 1, 1);
-    std::vector<float> dense(std::size_t(dims.x) * dims.y * dims.z);
-    evaluateDense(scene, h, first, dims, dense.data());
-    auto acc = grid->getConstAccessor();
-    std::size_t wrong = 0, positive = 0;
-    for (int k = 0; k < dims.z; ++k)
-        for (int j = 0; j < dims.y; ++j)
-            for (int i = 0; i < dims.x; ++i) {
-                const openvdb::Coord c(first.x + i, first.y + j, first.z + k);
-                const float v = dense[(std::size_t(k) * dims.y + j) * dims.x + i];
-                positive += v > 0;
-                wrong += acc.getValue(c) != v || acc.isValueOn(c) != (v > 0);
-            }
-    CHECK(wrong == 0);
+    std::size_t positive = 0, voxels = 0;
+    CHECK(differencesFromDense(scene, h, *grid, positive, voxels) == 0);
     CHECK(positive == grid->activeVoxelCount());
     // Sparse: far fewer voxels evaluated than the box holds.
-    CHECK(raster.stats().voxelsEvaluated < dense.size() / 2);
+    CHECK(raster.stats().voxelsEvaluated < voxels / 2);
+}
+
+TEST_CASE("a scene over many VDB nodes is rasterized in batches of nodes and still equals dense evaluation") {
+    initializeOpenVdb();
+    // 80 small spheres along x, 1.3 nodes of 128 voxels apart: each reaches nodes of its own,
+    // more than one batch (64 nodes) holds.
+    std::vector<Primitive> spheres;
+    for (int i = 0; i < 80; ++i) spheres.push_back(ellipsoid({i * 1.664 + 0.3 * (i % 3), 0.01 * (i % 5), 0}, {0.05, 0.05, 0.05}, 0.05));
+    const DensityScene scene(spheres, "row");
+    const double h = 0.01;
+    for (const bool surfaceOnly : {false, true}) {
+        RasterOptions o;
+        o.voxelSize = h;
+        o.surfaceOnly = surfaceOnly;
+        const DensityRaster raster(scene, o);
+        CHECK(raster.stats().leavesDecided > 64 * 4096);
+        if (surfaceOnly) continue; // surface-only leaves are filled by area, not exact everywhere
+        std::size_t positive = 0, voxels = 0;
+        CHECK(differencesFromDense(scene, h, *floatGrid(raster.grid()), positive, voxels) == 0);
+        CHECK(positive == floatGrid(raster.grid())->activeVoxelCount());
+        CHECK(positive > 80 * 1000);
+    }
+}
+
+TEST_CASE("a raster that would outgrow its memory stops with an error naming the voxel size") {
+    initializeOpenVdb();
+    const DensityScene scene(testScene(), "test");
+    RasterOptions o;
+    o.voxelSize = 0.02;
+    const DensityRaster full(scene, o);
+    const std::uint64_t leaves = full.stats().leavesEvaluated;
+    REQUIRE(leaves > 100);
+    // Room for half of its leaves' values (2 KiB each): it stops, saying why.
+    o.memoryLimit = double(leaves) * 1024;
+    CHECK_THROWS_WITH(DensityRaster(scene, o), Catch::Contains("--voxel-size") && Catch::Contains("larger than the memory") &&
+                                                   Catch::Contains("test"));
+    o.memoryLimit = double(leaves) * 4096;
+    CHECK_NOTHROW(DensityRaster(scene, o));
 }
 
 TEST_CASE("cores covering whole VDB nodes become constant tiles, without per-voxel work") {

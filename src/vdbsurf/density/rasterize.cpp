@@ -2,7 +2,9 @@
 
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/free_memory.h"
 #include "vdbsurf/density/scene_json.h"
+#include "vdbsurf/vdb/voxel_transform.h"
 
 #include <openvdb/openvdb.h>
 #include <tbb/parallel_for.h>
@@ -12,6 +14,7 @@
 #include <bitset>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <unordered_map>
 
 namespace vdbsurf {
@@ -70,8 +73,29 @@ struct DensityRaster::Impl {
     FloatGrid::Ptr grid;
     RasterStats stats;
     std::unordered_map<Coord, std::unique_ptr<LeafSums>, CoordHash> sums; // options.keepSums
+    double memoryBudget = 0; // bytes of leaf values a build may add (0: no limit known)
 
     Impl(const DensityScene& s, const RasterOptions& o) : scene(s), options(o) {}
+
+    // A build past the memory the machine had free would be killed by the kernel, without a
+    // message and after minutes; stop while an error can still be reported. Leaf values are
+    // nearly all of a build's memory (tiles are values in their parents' tables).
+    void checkMemory() const {
+        if (memoryBudget <= 0) return;
+        // A leaf node holds its values on the heap, apart from the node itself.
+        const double perLeaf = double(sizeof(LeafT) + LeafT::SIZE * sizeof(float)) +
+                               (options.keepSums ? double(sizeof(LeafSums)) : 0.0);
+        const double used = double(stats.leavesEvaluated) * perLeaf;
+        if (used <= memoryBudget) return;
+        const double gib = double(1 << 30);
+        std::ostringstream s;
+        s.precision(3);
+        s << messageNumber(h()) << " makes the density grid of " << scene.describe() << " larger than the memory it may use ("
+          << stats.leavesEvaluated << " leaves of values so far, " << used / gib << " GiB; limit " << memoryBudget / gib
+          << " GiB" << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started") << "); use a larger voxel size"
+          << (options.surfaceOnly ? "" : " or --surface-only");
+        throw Error("--voxel-size", s.str());
+    }
 
     double h() const { return options.voxelSize; }
 
@@ -256,7 +280,13 @@ struct DensityRaster::Impl {
         grid = FloatGrid::create(0.0f);
         grid->setName("density");
         grid->setGridClass(openvdb::GRID_FOG_VOLUME);
-        grid->setTransform(openvdb::math::Transform::createLinearTransform(h()));
+        grid->setTransform(voxelTransform(h(), "--voxel-size"));
+        if (options.memoryLimit > 0) {
+            memoryBudget = options.memoryLimit;
+        } else {
+            const std::optional<std::size_t> freeBytes = availableMemoryBytes();
+            memoryBudget = freeBytes ? 0.8 * double(*freeBytes) : 0.0;
+        }
 
         // The 128³ nodes that added density reaches (subtraction alone makes none).
         std::vector<Coord> nodes;
@@ -275,32 +305,42 @@ struct DensityRaster::Impl {
                 scene.primitivesTouching(box, among);
                 nodeFill[i] = among.empty() ? Fill::Empty : decide(scene.bounds(box, among));
             });
-        // The leaves of every undecided node in one parallel loop: a node's 4096 leaves are
-        // mostly cheap decisions, so a loop per node would leave threads idle at each node's end.
-        std::vector<Coord> origins, openNodes;
+        // The leaves of undecided nodes in parallel loops over batches of nodes: a node's 4096
+        // leaves are mostly cheap decisions, so a loop per node would leave threads idle at each
+        // node's end; one loop over all of them would hold a result for every leaf of the whole
+        // falloff shell at once (12 GB at 3,000 voxels across) before placing any.
+        constexpr std::size_t kLeavesPerNode = (kNode / kLeaf) * (kNode / kLeaf) * (kNode / kLeaf);
+        constexpr std::size_t kNodesPerBatch = 64;
+        std::vector<Coord> openNodes;
         for (std::size_t i = 0; i < nodes.size(); ++i) {
             if (nodeFill[i] == Fill::Full) {
                 grid->tree().addTile(2, nodes[i], 1.0f, true);
                 ++stats.nodeTiles;
             }
-            if (nodeFill[i] != Fill::Exact) continue;
-            openNodes.push_back(nodes[i]);
-            for (int x = 0; x < kNode; x += kLeaf)
-                for (int y = 0; y < kNode; y += kLeaf)
-                    for (int z = 0; z < kNode; z += kLeaf) origins.push_back(nodes[i].offsetBy(x, y, z));
+            if (nodeFill[i] == Fill::Exact) openNodes.push_back(nodes[i]);
         }
+        std::vector<Coord> origins;
         std::vector<LeafResult> results;
-        computeLeaves(origins, results, nullptr);
-        stats.leavesDecided = origins.size();
-        constexpr std::size_t kLeavesPerNode = (kNode / kLeaf) * (kNode / kLeaf) * (kNode / kLeaf);
-        for (std::size_t n = 0; n < openNodes.size(); ++n) {
-            const auto first = results.begin() + std::ptrdiff_t(n * kLeavesPerNode), last = first + std::ptrdiff_t(kLeavesPerNode);
-            if (std::all_of(first, last, [](const LeafResult& r) { return r.fill == Fill::Full; })) {
-                grid->tree().addTile(2, openNodes[n], 1.0f, true);
-                ++stats.nodeTiles;
-                continue;
+        for (std::size_t batch = 0; batch < openNodes.size(); batch += kNodesPerBatch) {
+            const std::size_t end = std::min(openNodes.size(), batch + kNodesPerBatch);
+            origins.clear();
+            for (std::size_t n = batch; n < end; ++n)
+                for (int x = 0; x < kNode; x += kLeaf)
+                    for (int y = 0; y < kNode; y += kLeaf)
+                        for (int z = 0; z < kNode; z += kLeaf) origins.push_back(openNodes[n].offsetBy(x, y, z));
+            computeLeaves(origins, results, nullptr);
+            stats.leavesDecided += origins.size();
+            for (std::size_t n = batch; n < end; ++n) {
+                const auto first = results.begin() + std::ptrdiff_t((n - batch) * kLeavesPerNode);
+                const auto last = first + std::ptrdiff_t(kLeavesPerNode);
+                if (std::all_of(first, last, [](const LeafResult& r) { return r.fill == Fill::Full; })) {
+                    grid->tree().addTile(2, openNodes[n], 1.0f, true);
+                    ++stats.nodeTiles;
+                    continue;
+                }
+                for (auto r = first; r != last; ++r) apply(*r, false);
             }
-            for (auto r = first; r != last; ++r) apply(*r, false);
+            checkMemory();
         }
         stats.seconds = since(t0);
     }

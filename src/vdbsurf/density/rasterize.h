@@ -28,6 +28,9 @@ struct RasterOptions {
     // Keep each evaluated voxel's fixed-point sum (8 bytes a voxel, as long as the raster lives)
     // so that update() corrects it by the changed primitives alone instead of summing them all.
     bool keepSums = false;
+    // Bytes of leaf values a build may hold before it stops with an Error naming --voxel-size;
+    // 0: 80 % of the memory free when the build starts (past it the kernel would kill the process).
+    double memoryLimit = 0;
     const CancelToken* cancel = nullptr;
 };
 

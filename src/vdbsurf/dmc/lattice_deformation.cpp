@@ -2,6 +2,7 @@
 
 #include "vdbsurf/lattice/lattice.h"
 #include "vdbsurf/vdb/vdb_file.h"
+#include "vdbsurf/vdb/voxel_transform.h"
 
 
 namespace vdbsurf {
@@ -31,7 +32,7 @@ void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
 void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
                      const std::map<std::string, std::string>& metadata) {
     initializeOpenVdb();
-    auto xform = openvdb::math::Transform::createLinearTransform(lattice.frame.h);
+    auto xform = voxelTransform(lattice.frame.h, path);
     xform->postTranslate(openvdb::Vec3d(lattice.frame.origin.x, lattice.frame.origin.y, lattice.frame.origin.z));
 
     // Nodes of active cells: the cells dilated by one towards +x, +y, +z.

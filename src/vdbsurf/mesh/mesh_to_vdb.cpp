@@ -2,6 +2,7 @@
 
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/vdb/vdb_file.h"
+#include "vdbsurf/vdb/voxel_transform.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/MeshToVolume.h>
@@ -23,7 +24,7 @@ void writeMeshAsLevelSet(const std::string& path, const Mesh& mesh, const LevelS
     std::vector<openvdb::Vec4I> q(quads.size() / 4);
     for (std::size_t i = 0; i < q.size(); ++i) q[i] = {quads[4 * i], quads[4 * i + 1], quads[4 * i + 2], quads[4 * i + 3]};
 
-    const auto xform = openvdb::math::Transform::createLinearTransform(options.voxelSize);
+    const auto xform = voxelTransform(options.voxelSize, path);
     openvdb::FloatGrid::Ptr grid = openvdb::tools::meshToLevelSet<openvdb::FloatGrid>(*xform, points, t, q, options.halfWidth);
     grid->setName(options.gridName);
     grid->setGridClass(openvdb::GRID_LEVEL_SET);

@@ -1,6 +1,7 @@
 #include "vdbsurf/vdb/level_set_from_distance.h"
 
 #include "vdbsurf/vdb/vdb_file.h"
+#include "vdbsurf/vdb/voxel_transform.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/SignedFloodFill.h>
@@ -13,7 +14,7 @@ GridBasePtr levelSetFromDistance(const std::function<double(const Vec3d&)>& sdf,
     initializeOpenVdb();
     const float band = float(halfWidth * voxelSize);
     auto g = openvdb::FloatGrid::create(band);
-    g->setTransform(openvdb::math::Transform::createLinearTransform(voxelSize));
+    g->setTransform(voxelTransform(voxelSize, "voxel size"));
     g->setGridClass(openvdb::GRID_LEVEL_SET);
     g->setName("surface");
     auto acc = g->getAccessor();

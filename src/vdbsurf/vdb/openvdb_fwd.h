@@ -9,6 +9,9 @@ namespace openvdb {
 OPENVDB_USE_VERSION_NAMESPACE
 namespace OPENVDB_VERSION_NAME {
 class GridBase;
+namespace math {
+class Transform;
+} // namespace math
 } // namespace OPENVDB_VERSION_NAME
 } // namespace openvdb
 

@@ -1,6 +1,7 @@
 #include "vdbsurf/vdb/volume_to_mesh_peer.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/vdb/voxel_transform.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/GridTransformer.h>
@@ -41,7 +42,7 @@ PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame) {
         const auto t0 = Clock::now();
         auto target = GridT::create(input.background());
         target->setGridClass(input.getGridClass());
-        auto xform = openvdb::math::Transform::createLinearTransform(frame->h);
+        auto xform = voxelTransform(frame->h, "--voxel-size");
         xform->postTranslate(openvdb::Vec3d(frame->origin.x, frame->origin.y, frame->origin.z));
         target->setTransform(xform);
         openvdb::tools::resampleToMatch<openvdb::tools::BoxSampler>(input, *target);

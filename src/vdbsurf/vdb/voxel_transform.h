@@ -1,0 +1,16 @@
+// The transform of every grid vdbsurf writes: a uniform voxel size. OpenVDB refuses a scale whose
+// determinant is below 3e-15 (voxels under about 1.44e-5 world units) with an ArithmeticError
+// that names nothing; this refuses it first, saying which voxel size and why.
+#pragma once
+#include "vdbsurf/vdb/openvdb_fwd.h"
+
+#include <memory>
+#include <string>
+
+namespace vdbsurf {
+
+// Throws Error naming `what` (the option or input the voxel size came from) when a .vdb grid
+// cannot have voxels of this size.
+std::shared_ptr<openvdb::math::Transform> voxelTransform(double voxelSize, const std::string& what);
+
+} // namespace vdbsurf
