@@ -21,6 +21,7 @@ namespace {
 
 // OpenVDB's io::Compression.h flags and per-node value-compression markers.
 constexpr std::uint32_t kNodeMaskCompression = 222;
+constexpr std::uint32_t kNewestKnown = 224; // OPENVDB_FILE_VERSION of OpenVDB 10: later layouts are not assumed
 constexpr std::uint32_t kZip = 0x1, kActiveMask = 0x2, kBlosc = 0x4;
 enum NodeValues : std::int8_t {
     kOneInactiveValue = 2, // NO_MASK_AND_ONE_INACTIVE_VAL
@@ -218,8 +219,8 @@ std::vector<char> readExtent(const std::string& path, std::int64_t begin, std::i
 
 void checkGridTreeLayout(const std::string& path, const VdbLayout& layout, const VdbGridExtent& grid) {
     ValueBytes value;
-    if (!layout.hasGridOffsets || layout.fileVersion < kNodeMaskCompression || grid.instance ||
-        !valueBytesOf(grid.treeType, value))
+    const bool knownLayout = layout.fileVersion >= kNodeMaskCompression && layout.fileVersion <= kNewestKnown;
+    if (!layout.hasGridOffsets || !knownLayout || grid.instance || !valueBytesOf(grid.treeType, value))
         return;
     initializeOpenVdb(); // the transform reader needs OpenVDB's map registry
     GridBytes in(readExtent(path, grid.gridPos, grid.endPos), grid.gridPos);
