@@ -81,9 +81,9 @@ public:
         }
     }
     openvdb::GridBase::Ptr read(const std::string& name) {
-        // Descriptors' unique names add "\x1e<n>" to names that repeat; OpenVDB reads by either.
+        // OpenVDB finds a grid by its plain or its unique name.
         for (const VdbGridExtent& g : mLayout.grids)
-            if (g.name == name || g.name.substr(0, g.name.find('\x1e')) == name) checkGridTreeLayout(mPath, mLayout, g);
+            if (g.name == name || g.plainName() == name) checkGridTreeLayout(mPath, mLayout, g);
         try {
             // Leaf buffers and node tables are small; no single block of a grid can need more
             // than many times the file's size, even decompressed.

@@ -15,6 +15,9 @@ struct VdbGridExtent {
     bool halfFloat = false; // values stored as 16-bit floats
     bool instance = false;  // shares another grid's tree: no tree of its own in the file
     std::int64_t gridPos = 0, blockPos = 0, endPos = 0;
+
+    // The grid's name: a unique name adds "\x1e<n>" to a name that repeats in the file.
+    std::string plainName() const { return name.substr(0, name.find('\x1e')); }
 };
 
 struct VdbLayout {

@@ -248,7 +248,7 @@ void checkGridTreeLayout(const std::string& path, const VdbLayout& layout, const
         walk.topology();
         walk.buffers();
     } catch (const Damage& d) {
-        const std::string name = grid.name.substr(0, grid.name.find('\x1e')); // without the duplicate-name suffix
+        const std::string name = grid.plainName();
         throw Error(path, "is damaged: grid " + (name.empty() ? std::string("(unnamed)") : "'" + name + "'") + ", byte " +
                               std::to_string(d.at) + ": " + d.what);
     }
