@@ -32,9 +32,6 @@ std::string className(openvdb::GridClass c) {
     }
 }
 
-// How messages name a grid; unnamed grids are common (OpenVDB's own tools write them).
-std::string gridLabel(const std::string& name) { return name.empty() ? "(unnamed)" : "'" + name + "'"; }
-
 bool isScalarType(const openvdb::GridBase& g) {
     return g.isType<openvdb::FloatGrid>() || g.isType<openvdb::DoubleGrid>();
 }
@@ -195,6 +192,8 @@ LoadedGrid readScalarGrid(const std::string& path, const std::string& name) {
     }
     return {f.read(chosen), chosen, note, chosen.empty() ? path : path + ":" + chosen};
 }
+
+std::string gridLabel(const std::string& name) { return name.empty() ? "(unnamed)" : "'" + name + "'"; }
 
 void writeVdbFile(const std::string& path, const std::vector<GridBasePtr>& grids) {
     initializeOpenVdb();

@@ -35,6 +35,9 @@ struct LoadedGrid {
     std::string source; // how messages name it: "file.vdb:name", or the file alone for an unnamed grid
 };
 
+// How messages name a grid: 'name', or (unnamed) — OpenVDB's own tools write unnamed grids.
+std::string gridLabel(const std::string& name);
+
 // Reads the grid to mesh: by name, or the first float/double grid when name is empty. Throws
 // Error naming the file.
 LoadedGrid readScalarGrid(const std::string& path, const std::string& name);

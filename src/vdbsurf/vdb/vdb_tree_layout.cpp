@@ -248,9 +248,7 @@ void checkGridTreeLayout(const std::string& path, const VdbLayout& layout, const
         walk.topology();
         walk.buffers();
     } catch (const Damage& d) {
-        const std::string name = grid.plainName();
-        throw Error(path, "is damaged: grid " + (name.empty() ? std::string("(unnamed)") : "'" + name + "'") + ", byte " +
-                              std::to_string(d.at) + ": " + d.what);
+        throw Error(path, "is damaged: grid " + gridLabel(grid.plainName()) + ", byte " + std::to_string(d.at) + ": " + d.what);
     }
 }
 
