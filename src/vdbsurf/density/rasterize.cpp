@@ -16,6 +16,7 @@
 #include <cmath>
 #include <sstream>
 #include <unordered_map>
+#include <unordered_set>
 
 namespace vdbsurf {
 
@@ -29,6 +30,10 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 constexpr int kLeaf = 8, kNode = 128;
+// Blocks decided whole before their leaves: a node, then halves of it down to 16³, so the
+// leaves asked for bounds follow the surface instead of filling every node it passes through.
+constexpr int kLevels = 5; // 128, 64, 32, 16, 8
+constexpr int levelOf(int n) { return n == 128 ? 0 : n == 64 ? 1 : n == 32 ? 2 : n == 16 ? 3 : 4; }
 constexpr int kBlock = 2, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
 
 enum class Fill { Empty, Full, Exact };
@@ -64,6 +69,35 @@ struct Change {
 struct CoordHash {
     std::size_t operator()(const Coord& c) const { return c.hash<20>(); }
 };
+using CoordSet = std::unordered_set<Coord, CoordHash>;
+
+// A block of n³ voxels that one decision fills whole.
+struct BlockFill {
+    Coord origin;
+    int size = kLeaf;
+    Fill fill = Fill::Empty;
+};
+
+// What the descent through one 128³ node decided: blocks filled whole, and the leaves whose
+// own rule (computeLeaf) is still to run.
+struct NodePlan {
+    std::vector<BlockFill> fills;
+    std::vector<Coord> leaves;
+    std::uint64_t fullLeaves = 0, blocksDecided = 0;
+};
+
+// Where an edit can change anything, per level (index levelOf(n)): blocks some changed
+// primitive reaches (touched), and those with a touched block inside (region).
+struct EditSets {
+    std::array<CoordSet, kLevels> touched, region;
+};
+
+template <typename F> void forEachChild(const Coord& origin, int n, F&& f) {
+    const int m = n / 2;
+    for (int i = 0; i < n; i += m)
+        for (int j = 0; j < n; j += m)
+            for (int k = 0; k < n; k += m) f(origin.offsetBy(i, j, k));
+}
 
 } // namespace
 
@@ -273,6 +307,109 @@ struct DensityRaster::Impl {
                 for (int z = a.z(); z <= b.z(); z += n) out.emplace_back(x, y, z);
     }
 
+    // One decision for a whole block of n³ voxels from the scene's bounds over its reach, by the
+    // rule a leaf applies to itself: Empty or Full means every voxel within the reach is on one
+    // side (exactly 0 or 1 in full mode), which is all either mode promises away from exact values.
+    Fill decideBlock(const DensityScene& s, const Coord& origin, int n) const {
+        std::vector<std::uint32_t> among;
+        const Interval b = s.boundsReaching(blockBox(origin, n, reachGrow()), among);
+        return among.empty() ? Fill::Empty : decide(b);
+    }
+
+    // A leaf's value is the fill of the first block above it (128³ down to 16³) decided Empty or
+    // Full, else its own rule. The descent asks each block once and goes on only into undecided
+    // ones, so the leaves asked follow the surface (and, in full mode, the falloff shell).
+    void planBuild(const Coord& origin, int n, NodePlan& plan) const {
+        ++plan.blocksDecided;
+        const Fill f = decideBlock(scene, origin, n);
+        if (f == Fill::Full) {
+            plan.fills.push_back({origin, n, f});
+            plan.fullLeaves += std::uint64_t(n / kLeaf) * (n / kLeaf) * (n / kLeaf);
+        }
+        if (f != Fill::Exact) return;
+        forEachChild(origin, n, [&](const Coord& c) {
+            if (n / 2 == kLeaf) plan.leaves.push_back(c);
+            else planBuild(c, n / 2, plan);
+        });
+    }
+
+    // An edit's descent, under a block whose voxels the edit left decided by `oldChain` (Exact:
+    // by the blocks and leaves below). A block's decision depends only on the primitives reaching
+    // it, so it can differ only where a changed primitive reaches (touched); the walk goes where
+    // a touched block lies below or the old fill must give way, and compares old and new fills.
+    void planEdit(const Coord& origin, int n, Fill oldChain, const DensityScene& before, const EditSets& sets,
+                  NodePlan& plan) const {
+        const int level = levelOf(n);
+        const bool inRegion = sets.region[level].count(origin) != 0;
+        if (oldChain == Fill::Exact && !inRegion) return; // nothing below it can change
+        if (n == kLeaf) {
+            plan.leaves.push_back(origin); // it was filled from above, or a changed primitive reaches it
+            return;
+        }
+        ++plan.blocksDecided;
+        const Fill newFill = decideBlock(scene, origin, n);
+        Fill oldFill = oldChain;
+        if (oldChain == Fill::Exact) {
+            oldFill = newFill;
+            if (sets.touched[level].count(origin)) {
+                ++plan.blocksDecided;
+                oldFill = decideBlock(before, origin, n);
+            }
+        }
+        if (newFill != Fill::Exact) {
+            if (oldFill != newFill) plan.fills.push_back({origin, n, newFill});
+            return;
+        }
+        forEachChild(origin, n, [&](const Coord& c) { planEdit(c, n / 2, oldFill, before, sets, plan); });
+    }
+
+    // Writes a block's fill; `replacing` when the tree may hold something there.
+    void applyFill(const BlockFill& f, bool replacing) {
+        auto& tree = grid->tree();
+        if (f.size == kNode) {
+            if (f.fill == Fill::Full) {
+                tree.addTile(2, f.origin, 1.0f, true);
+                ++stats.nodeTiles;
+            } else if (replacing && (tree.getValueDepth(f.origin) > 0 || tree.isValueOn(f.origin) || tree.getValue(f.origin) != 0.0f)) {
+                tree.addTile(2, f.origin, 0.0f, false);
+            }
+            if (replacing && !sums.empty())
+                for (int x = 0; x < kNode; x += kLeaf)
+                    for (int y = 0; y < kNode; y += kLeaf)
+                        for (int z = 0; z < kNode; z += kLeaf) sums.erase(f.origin.offsetBy(x, y, z));
+            return;
+        }
+        for (int x = 0; x < f.size; x += kLeaf)
+            for (int y = 0; y < f.size; y += kLeaf)
+                for (int z = 0; z < f.size; z += kLeaf) {
+                    LeafResult r;
+                    r.origin = f.origin.offsetBy(x, y, z);
+                    r.fill = f.fill;
+                    apply(r, replacing);
+                }
+    }
+
+    // Descends every node in parallel, computes the leaves the descents leave open in one
+    // parallel loop, and returns each node's plan with its leaves' results (in plan order).
+    void runPlans(const std::vector<Coord>& nodes, std::vector<NodePlan>& plans, std::vector<LeafResult>& results,
+                  const Change* change, const EditSets* sets) {
+        plans.assign(nodes.size(), NodePlan());
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 1), [&](const auto& range) {
+            if (options.cancel) options.cancel->check();
+            for (std::size_t i = range.begin(); i != range.end(); ++i) {
+                if (change) planEdit(nodes[i], kNode, Fill::Exact, *change->before, *sets, plans[i]);
+                else planBuild(nodes[i], kNode, plans[i]);
+            }
+        });
+        std::vector<Coord> origins;
+        for (const NodePlan& p : plans) {
+            origins.insert(origins.end(), p.leaves.begin(), p.leaves.end());
+            stats.blocksDecided += p.blocksDecided;
+        }
+        computeLeaves(origins, results, change);
+        stats.leavesDecided += origins.size();
+    }
+
     void build() {
         const auto t0 = Clock::now();
         stats = {};
@@ -295,50 +432,29 @@ struct DensityRaster::Impl {
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
 
-        // Full mode: exact values are 0 or 1 throughout a node whose bounds say so, so deciding it
-        // whole gives the same voxels as deciding its leaves (what an edit does) — only faster.
-        std::vector<Fill> nodeFill(nodes.size(), Fill::Exact);
-        if (!options.surfaceOnly)
-            tbb::parallel_for(std::size_t(0), nodes.size(), [&](std::size_t i) {
-                std::vector<std::uint32_t> among;
-                const Box3 box = blockBox(nodes[i], kNode, 0);
-                scene.primitivesTouching(box, among);
-                nodeFill[i] = among.empty() ? Fill::Empty : decide(scene.bounds(box, among));
-            });
-        // The leaves of undecided nodes in parallel loops over batches of nodes: a node's 4096
-        // leaves are mostly cheap decisions, so a loop per node would leave threads idle at each
-        // node's end; one loop over all of them would hold a result for every leaf of the whole
-        // falloff shell at once (12 GB at 3,000 voxels across) before placing any.
+        // Batches of nodes: a node's work varies from one decision to thousands of leaves, so a
+        // loop per node would leave threads idle at each node's end; one loop over all of them
+        // would hold a result for every exact leaf at once (12 GB at 3,000 voxels across) before
+        // placing any.
         constexpr std::size_t kLeavesPerNode = (kNode / kLeaf) * (kNode / kLeaf) * (kNode / kLeaf);
         constexpr std::size_t kNodesPerBatch = 64;
-        std::vector<Coord> openNodes;
-        for (std::size_t i = 0; i < nodes.size(); ++i) {
-            if (nodeFill[i] == Fill::Full) {
-                grid->tree().addTile(2, nodes[i], 1.0f, true);
-                ++stats.nodeTiles;
-            }
-            if (nodeFill[i] == Fill::Exact) openNodes.push_back(nodes[i]);
-        }
-        std::vector<Coord> origins;
+        std::vector<Coord> batchNodes;
+        std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
-        for (std::size_t batch = 0; batch < openNodes.size(); batch += kNodesPerBatch) {
-            const std::size_t end = std::min(openNodes.size(), batch + kNodesPerBatch);
-            origins.clear();
-            for (std::size_t n = batch; n < end; ++n)
-                for (int x = 0; x < kNode; x += kLeaf)
-                    for (int y = 0; y < kNode; y += kLeaf)
-                        for (int z = 0; z < kNode; z += kLeaf) origins.push_back(openNodes[n].offsetBy(x, y, z));
-            computeLeaves(origins, results, nullptr);
-            stats.leavesDecided += origins.size();
-            for (std::size_t n = batch; n < end; ++n) {
-                const auto first = results.begin() + std::ptrdiff_t((n - batch) * kLeavesPerNode);
-                const auto last = first + std::ptrdiff_t(kLeavesPerNode);
-                if (std::all_of(first, last, [](const LeafResult& r) { return r.fill == Fill::Full; })) {
-                    grid->tree().addTile(2, openNodes[n], 1.0f, true);
-                    ++stats.nodeTiles;
+        for (std::size_t batch = 0; batch < nodes.size(); batch += kNodesPerBatch) {
+            batchNodes.assign(nodes.begin() + std::ptrdiff_t(batch), nodes.begin() + std::ptrdiff_t(std::min(nodes.size(), batch + kNodesPerBatch)));
+            runPlans(batchNodes, plans, results, nullptr, nullptr);
+            auto next = results.begin();
+            for (std::size_t n = 0; n < plans.size(); ++n) {
+                const auto first = next;
+                next += std::ptrdiff_t(plans[n].leaves.size());
+                const auto computedFull = std::count_if(first, next, [](const LeafResult& r) { return r.fill == Fill::Full; });
+                if (plans[n].fullLeaves + std::uint64_t(computedFull) == kLeavesPerNode) {
+                    applyFill({batchNodes[n], kNode, Fill::Full}, false);
                     continue;
                 }
-                for (auto r = first; r != last; ++r) apply(*r, false);
+                for (const BlockFill& f : plans[n].fills) applyFill(f, false);
+                for (auto r = first; r != next; ++r) apply(*r, false);
             }
             checkMemory();
         }
@@ -365,28 +481,43 @@ struct DensityRaster::Impl {
         for (std::uint32_t j = 0; j < after.size(); ++j)
             if (!keptAfter[j]) change.added.push_back(j);
 
-        // The leaves a changed primitive takes part in, before or after. Elsewhere it adds
-        // exactly 0, so the leaf's voxels and decision are what they were.
-        std::vector<Coord> origins;
+        // The blocks, at every level, a changed primitive takes part in before or after.
+        // Elsewhere it adds exactly 0, so their decisions and voxels are what they were.
+        EditSets sets;
         auto reached = [&](const PreparedPrimitive& p) {
-            std::vector<Coord> leaves;
-            blocksIn(p.influenceBox(), kLeaf, leaves);
+            std::vector<Coord> blocks;
             double lo, hi;
-            for (const Coord& c : leaves)
-                if (p.reaches(reachBox(c), lo, hi)) origins.push_back(c);
+            for (int n = kNode; n >= kLeaf; n /= 2) {
+                blocks.clear();
+                blocksIn(p.influenceBox(), n, blocks);
+                for (const Coord& c : blocks) {
+                    if (!p.reaches(blockBox(c, n, reachGrow()), lo, hi)) continue;
+                    sets.touched[levelOf(n)].insert(c);
+                    // Up to the first block already in the region: its ancestors are there too.
+                    for (int m = n; m <= kNode; m *= 2)
+                        if (!sets.region[levelOf(m)].insert(Coord(c.x() & ~(m - 1), c.y() & ~(m - 1), c.z() & ~(m - 1))).second) break;
+                }
+            }
         };
         for (std::uint32_t i : change.removed) reached(scene.prepared()[i]);
         for (std::uint32_t j : change.added) reached(edited.prepared()[j]);
-        std::sort(origins.begin(), origins.end());
-        origins.erase(std::unique(origins.begin(), origins.end()), origins.end());
+        std::vector<Coord> nodes(sets.region[0].begin(), sets.region[0].end());
+        std::sort(nodes.begin(), nodes.end());
 
         const DensityScene old = std::move(scene);
         scene = edited;
         change.before = &old;
+        std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
-        computeLeaves(origins, results, &change);
+        runPlans(nodes, plans, results, &change, &sets);
+        std::uint64_t refilled = 0;
+        for (const NodePlan& p : plans)
+            for (const BlockFill& f : p.fills) {
+                applyFill(f, true);
+                refilled += std::uint64_t(f.size / kLeaf) * (f.size / kLeaf) * (f.size / kLeaf);
+            }
         for (LeafResult& r : results) apply(r, true);
-        stats.leavesDecided = stats.leavesRecomputed = origins.size();
+        stats.leavesRecomputed = stats.leavesDecided + refilled;
         stats.seconds = since(t0);
     }
 };

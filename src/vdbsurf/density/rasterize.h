@@ -1,16 +1,17 @@
 // Sparse rasterization of a density scene into an OpenVDB fog FloatGrid named "density" (seed
 // 003's octree becomes the VDB tree), and editing it one primitive at a time.
 //
-// Voxel (i, j, k) sits at world h·(i, j, k). Each 8³ leaf is decided from the scene's bounds
-// over it: no density → background (no work); density 1 throughout → a constant tile (no
-// per-voxel work; whole 128³ nodes become one tile); otherwise its voxels are evaluated, only
-// for the primitives that reach the leaf. With surfaceOnly, a leaf is decided per 2³ block and
-// only blocks the 0.5 surface can pass within one voxel of are evaluated; the rest are filled
-// by side (1 inside, background outside), which is all a mesher needs. The decision for a leaf
-// depends only on the primitives that reach it, and sums are exact fixed-point integers, so an
-// edit recomputes only the leaves the changed primitives reach before or after — with keepSums,
-// correcting each stored sum by those primitives alone — and equals a full rebuild voxel for
-// voxel.
+// Voxel (i, j, k) sits at world h·(i, j, k). Blocks are decided from the scene's bounds over
+// them, from a 128³ node down through halves to the 8³ leaf, going on only into undecided ones
+// (so the work follows the surface, not the volume): no density → background (no work);
+// density 1 throughout → constant tiles (no per-voxel work; a 128³ node becomes one tile);
+// otherwise a leaf's voxels are evaluated, only for the primitives that reach the leaf. With
+// surfaceOnly, a leaf is decided per 2³ block and only blocks the 0.5 surface can pass within
+// one voxel of are evaluated; the rest are filled by side (1 inside, background outside),
+// which is all a mesher needs. Each block's decision depends only on the primitives that reach
+// it, and sums are exact fixed-point integers, so an edit redecides only the blocks and leaves
+// the changed primitives reach before or after — with keepSums, correcting each stored sum by
+// those primitives alone — and equals a full rebuild voxel for voxel.
 #pragma once
 #include "vdbsurf/density/scene.h"
 #include "vdbsurf/vdb/openvdb_fwd.h"
@@ -37,11 +38,12 @@ struct RasterOptions {
 struct RasterStats {
     std::uint64_t nodeTiles = 0;       // 128³ constant tiles
     std::uint64_t leafTiles = 0;       // 8³ constant tiles
-    std::uint64_t leavesDecided = 0;   // leaves whose bounds were asked
+    std::uint64_t blocksDecided = 0;   // 128³ … 16³ blocks whose bounds were asked
+    std::uint64_t leavesDecided = 0;   // leaves whose bounds were asked (inside undecided blocks)
     std::uint64_t leavesEvaluated = 0; // leaves whose voxels were computed
     std::uint64_t voxelsEvaluated = 0; // voxels whose sum was computed from every primitive
     std::uint64_t voxelsUpdated = 0;   // edits with keepSums: voxels corrected by the changed ones
-    std::uint64_t leavesRecomputed = 0; // edits: leaves in the old and new influence
+    std::uint64_t leavesRecomputed = 0; // edits: leaves decided again or refilled by a block
     double seconds = 0;
 };
 
