@@ -118,6 +118,39 @@ TEST_CASE("the same input at 1 and 2 threads gives byte-identical files") {
     const std::string a = test::readFile(dir.path("a.obj")), b = test::readFile(dir.path("b.obj"));
     CHECK(a.size() > 100000);
     CHECK(a == b);
+
+    // .vdb files too: OpenVDB stamps each file with a random identifier, which vdbsurf replaces
+    // by one from the contents — the same grids give the same file, other grids another one.
+    const std::string scene = dir.path("scene.json");
+    std::ofstream(scene) << R"({"primitives": [{"core": "ellipsoid", "center": [0,0,0], "radii": [0.6,0.4,0.4], "falloff": 0.3},
+        {"core": "box", "center": [0.5,0.1,0], "half_extents": [0.2,0.2,0.3], "rotation": [0,20,40], "falloff": 0.2}]})";
+    std::string first;
+    for (const std::string threads : {"1", "2"}) {
+        for (const std::string mode : {"", "--surface-only"}) {
+            std::vector<std::string> args{"-q", "rasterize", scene, "-o", dir.path("d" + mode + threads + ".vdb"), "--voxel-size", "0.01",
+                                          "--threads", threads};
+            if (!mode.empty()) args.push_back(mode);
+            REQUIRE(runVdbsurf(args).exitCode == 0);
+        }
+        REQUIRE(runVdbsurf({"-q", "mesh", dir.path("s.vdb"), "-o", dir.path("m" + threads + ".obj"), "--lattice-out",
+                            dir.path("l" + threads + ".vdb"), "--threads", threads})
+                    .exitCode == 0);
+    }
+    for (const std::string name : {"d", "d--surface-only", "l"}) {
+        INFO(name);
+        const std::string one = test::readFile(dir.path(name + "1.vdb")), two = test::readFile(dir.path(name + "2.vdb"));
+        CHECK(one.size() > 10000);
+        CHECK(one == two);
+    }
+    const std::string full = test::readFile(dir.path("d1.vdb")), surface = test::readFile(dir.path("d--surface-only1.vdb"));
+    REQUIRE(full.size() > 60);
+    const std::string id = full.substr(21, 36);
+    CHECK(id != surface.substr(21, 36));
+    CHECK(id[8] == '-');
+    CHECK(id[14] == '8'); // version 8: a vendor's own UUID (RFC 9562)
+    const auto r = runVdbsurf({"info", "--verify", dir.path("d1.vdb")});
+    INFO(r.output);
+    CHECK(r.exitCode == 0);
 }
 
 TEST_CASE("unnamed grids are meshed and small valid files are read as valid") {

@@ -3,6 +3,7 @@
 #include "vdbsurf/core/atomic_file.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/vdb/allocation_cap.h"
+#include "vdbsurf/vdb/content_uuid.h"
 #include "vdbsurf/vdb/vdb_layout.h"
 #include "vdbsurf/vdb/vdb_tree_layout.h"
 
@@ -207,6 +208,11 @@ void writeVdbFile(const std::string& path, const std::vector<GridBasePtr>& grids
         file.close();
     } catch (const std::exception& e) {
         throw Error(path, std::string("cannot write: ") + e.what());
+    }
+    try {
+        stampContentUuid(out.tempPath()); // the same grids give the same file (content_uuid.h)
+    } catch (const Error& e) { // it names the temporary file; the user knows the output's name
+        throw Error(path, "cannot write: the temporary file " + std::string(e.what()));
     }
     out.commit();
 }

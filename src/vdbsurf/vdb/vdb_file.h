@@ -42,7 +42,8 @@ std::string gridLabel(const std::string& name);
 // Error naming the file.
 LoadedGrid readScalarGrid(const std::string& path, const std::string& name);
 
-// Writes grids to path atomically (temporary file + rename), with file-level metadata.
+// Writes grids to path atomically (temporary file + rename), with file-level metadata and an
+// identifier from the contents (content_uuid.h): the same grids give a byte-identical file.
 void writeVdbFile(const std::string& path, const std::vector<GridBasePtr>& grids);
 
 } // namespace vdbsurf
