@@ -2,6 +2,7 @@
 #include "support/test_support.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/field/grid_field.h"
 #include "vdbsurf/lattice/lattice.h"
@@ -11,6 +12,7 @@
 #include <cmath>
 
 using namespace vdbsurf;
+using openvdb::CoordBBox;
 
 namespace {
 Lattice build(const Field& f, double h, CellTest test) {
@@ -73,6 +75,34 @@ TEST_CASE("absurd spacings are refused before any work") {
     CHECK_THROWS_WITH(latticeCellRange(f, LatticeFrame{{-2, -2, -2}, 1e-9}), Catch::Contains("at most"));
     const LatticeFrame fine{{-2, -2, -2}, 2e-5};
     CHECK_THROWS_WITH(buildLattice(f, fine, latticeCellRange(f, fine), 0.0), Catch::Contains("too fine"));
+}
+
+TEST_CASE("a lattice that would need more memory to mesh than it may use stops while it is built, naming the voxel size") {
+    ExpressionField f("x^2+y^2+z^2-1", Box3{{-2, -2, -2}, {2, 2, 2}});
+    const LatticeFrame frame = f.naturalFrame(0.02); // about 4π / 0.02² = 31,000 cells on the sphere
+    const CoordBBox range = latticeCellRange(f, frame);
+    const Lattice lat = buildLattice(f, frame, range, 0.0, CellTest::Bounds, nullptr, 1e9);
+    const double needs = double(lat.stats.cellsActive) * kMeshBytesPerActiveCell;
+    REQUIRE(lat.stats.cellsActive > 20000);
+    CHECK_THROWS_WITH(buildLattice(f, frame, range, 0.0, CellTest::Bounds, nullptr, 0.5 * needs),
+                      Catch::Contains("--voxel-size") && Catch::Contains("memory") && Catch::Contains("x^2+y^2+z^2-1"));
+    CHECK_NOTHROW(buildLattice(f, frame, range, 0.0, CellTest::Bounds, nullptr, 1.01 * needs));
+    // A lattice of more blocks is judged from a sample of them first, before most are examined.
+    const LatticeFrame finer = f.naturalFrame(0.005);
+    const CoordBBox finerRange = latticeCellRange(f, finer);
+    const Lattice big = buildLattice(f, finer, finerRange, 0.0, CellTest::Bounds, nullptr, 1e10);
+    REQUIRE(big.stats.leafBlocksVisited > 2 * 4096);
+    const double bigNeeds = double(big.stats.cellsActive) * kMeshBytesPerActiveCell;
+    // Every second block is in the sample: half the cells, under the limit, estimate the total over it.
+    CHECK_THROWS_WITH(buildLattice(f, finer, finerRange, 0.0, CellTest::Bounds, nullptr, 0.7 * bigNeeds),
+                      Catch::Contains("estimated from") && Catch::Contains("memory"));
+    CHECK_NOTHROW(buildLattice(f, finer, finerRange, 0.0, CellTest::Bounds, nullptr, 1.01 * bigNeeds));
+    // Through the mesher, the limit it is given.
+    MeshRequest req;
+    req.voxelSize = 0.02;
+    req.memoryLimit = 0.5 * needs;
+    MeshReport rep;
+    CHECK_THROWS_WITH(meshField(f, req, rep), Catch::Contains("--voxel-size") && Catch::Contains("memory"));
 }
 
 TEST_CASE("a formula undefined on the lattice is reported with the point") {

@@ -48,7 +48,8 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     const openvdb::CoordBBox range = latticeCellRange(field, report.frame);
     // DMC needs every cell the surface may pass, also those whose corners miss it.
     Lattice lattice = buildLattice(field, report.frame, range, report.iso,
-                                   dmc && request.thin ? CellTest::Bounds : CellTest::CornerSigns, request.cancel);
+                                   dmc && request.thin ? CellTest::Bounds : CellTest::CornerSigns, request.cancel,
+                                   request.memoryLimit);
     report.upperNodesTested = lattice.stats.upperNodesTested;
     report.leafBlocksTested = lattice.stats.leafBlocksTested;
     report.leafBlocksVisited = lattice.stats.leafBlocksVisited;

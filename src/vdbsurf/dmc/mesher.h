@@ -41,6 +41,9 @@ struct MeshRequest {
     bool allowEmpty = false;
     // Called with the deformed lattice before the final surface is built (--lattice-out).
     std::function<void(const Lattice&, const LatticeDeformation&)> deformedLattice;
+    // Bytes the mesh may take while it is made (buildLattice's estimate); 0: 80 % of the memory
+    // free when meshing starts.
+    double memoryLimit = 0;
     const CancelToken* cancel = nullptr;
 };
 

@@ -2,14 +2,17 @@
 
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/free_memory.h"
 #include "vdbsurf/core/progress.h"
 
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 namespace vdbsurf {
@@ -122,7 +125,7 @@ CoordBBox latticeCellRange(const Field& field, const LatticeFrame& frame) {
 }
 
 Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordBBox& cellRange, double iso, CellTest test,
-                     const CancelToken* cancel) {
+                     const CancelToken* cancel, double memoryLimit) {
     const auto start = std::chrono::steady_clock::now();
     Lattice lat;
     lat.frame = frame;
@@ -152,12 +155,27 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     std::vector<std::int64_t> nanAt(blocks.size(), -1);
     std::vector<std::uint32_t> cellsExamined(blocks.size(), 0);
     Progress progress("lattice", blocks.size(), cancel);
+    // Active cells counted as they are found, so that a lattice too fine for the machine stops
+    // during this pass rather than minutes later, when the kernel kills the process.
+    double budget = memoryLimit;
+    if (!(budget > 0)) {
+        const std::optional<std::size_t> freeBytes = availableMemoryBytes();
+        budget = freeBytes ? 0.8 * double(*freeBytes) : 0.0;
+    }
+    const std::uint64_t maxActive = budget > 0 ? std::uint64_t(budget / kMeshBytesPerActiveCell) : ~std::uint64_t(0);
+    std::atomic<std::uint64_t> activeSoFar{0};
 
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
+    // Every stride-th block is examined first: a sample that tells within seconds whether the
+    // rest can fit (cells per block vary, so block counts alone cannot say).
+    const std::size_t stride = std::max<std::size_t>(1, blocks.size() / 4096);
+    auto examine = [&](const tbb::blocked_range<std::size_t>& r, bool sample) {
         std::array<double, kBlockNodeCount> vals;
         // Per node column (x, y): bit z set when node (x, y, z) is inside / exactly at iso.
         std::array<std::uint16_t, kBlockNodes * kBlockNodes> inside, atIso;
-        for (std::size_t bi = r.begin(); bi < r.end(); ++bi) {
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+            if (activeSoFar.load(std::memory_order_relaxed) > maxActive) return;
+            if (!sample && i % stride == 0) continue;
+            const std::size_t bi = sample ? i * stride : i;
             const Coord o = blocks[bi];
             CoordBBox box(o, o.offsetBy(kLeafDim - 1));
             box.intersect(cellRange);
@@ -213,14 +231,35 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             }
             cellsExamined[bi] = examined;
             if (!mask.isOff()) {
+                activeSoFar += mask.countOn();
                 auto leaf = std::make_unique<MaskLeaf>(o, false);
                 leaf->setValueMask(mask);
                 leaves[bi] = std::move(leaf);
             }
             progress.advance();
         }
-    });
-
+    };
+    auto tooMuch = [&](double cells, const std::string& atLeast, const std::string& how) {
+        const double gib = double(1 << 30);
+        std::ostringstream s;
+        s.precision(3);
+        s << frame.h << " would make the lattice around " << field.describe() << " too fine for this machine's memory (" << atLeast
+          << cells << " cells may hold surface" << how << "; meshing them needs about " << cells * kMeshBytesPerActiveCell / gib
+          << " GiB, and " << budget / gib << " GiB may be used" << (memoryLimit > 0 ? "" : ", 80 % of the memory free when it started")
+          << "); use a larger voxel size";
+        throw Error("--voxel-size", s.str());
+    };
+    const std::size_t sampled = (blocks.size() + stride - 1) / stride;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sampled, 16), [&](const auto& r) { examine(r, true); });
+    if (cancel) cancel->check();
+    // A sample of thousands of blocks, each holding 0 to 512 cells, estimates the total within a
+    // few per cent; the margin keeps a lattice that may just fit from being refused on it.
+    const double estimate = double(activeSoFar.load()) * double(blocks.size()) / double(sampled);
+    if (activeSoFar <= maxActive && estimate > 1.25 * double(maxActive))
+        tooMuch(estimate, "", ", estimated from " + std::to_string(sampled) + " of its " + std::to_string(blocks.size()) + " blocks of 8^3 cells");
+    if (stride > 1) tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks.size(), 16), [&](const auto& r) { examine(r, false); });
+    if (cancel) cancel->check();
+    if (activeSoFar > maxActive) tooMuch(double(activeSoFar.load()), "at least ", "");
     for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
         if (nanAt[bi] < 0) continue;
         const int n = int(nanAt[bi]);

@@ -40,11 +40,17 @@ enum class CellTest {
     CornerSigns  // only cells whose corner values change side: all that plain marching cubes meshes
 };
 
+// Bytes a mesh takes while it is made, per active cell (about one vertex each): DMC on smooth
+// surfaces and gyroids peaks at 100-160 (the lattice, the deformation, crossings, the mesh).
+constexpr double kMeshBytesPerActiveCell = 128;
+
 // Active cells: those whose corner values change side (so that every edge with a sign change has
 // its owning cell active, whatever the rounding of the bounds), plus, with CellTest::Bounds, those
 // whose bounds straddle iso. Blocks above the cells are always culled by their bounds. Throws
-// Error naming the field where a node value is NaN.
+// Error naming the field where a node value is NaN, and Error naming "--voxel-size" as soon as
+// the cells found would need more than memoryLimit bytes to mesh (kMeshBytesPerActiveCell each;
+// 0: 80 % of the memory free when it starts) — past it the kernel would kill the process.
 Lattice buildLattice(const Field& field, const LatticeFrame& frame, const openvdb::CoordBBox& cellRange, double iso,
-                     CellTest test = CellTest::Bounds, const CancelToken* cancel = nullptr);
+                     CellTest test = CellTest::Bounds, const CancelToken* cancel = nullptr, double memoryLimit = 0);
 
 } // namespace vdbsurf
