@@ -295,6 +295,53 @@ TEST_CASE("a step refining every face makes the same mesh, kinds and tags as the
         }
 }
 
+TEST_CASE("a step's polygon count is known before it runs, and refinement past the memory limit stops first, naming the input") {
+    std::mt19937 rng(11);
+    // Closed meshes: one polygon per unrefined face and per edge beside a refined one, exactly.
+    for (const Mesh& input : {test::cubeMesh(), test::mixedClosedMesh(), test::quadTorusMesh(6, 4, 2, 0.7)}) {
+        Sqrt2Subdivider s(input, "closed");
+        for (int i = 0; i < 5; ++i) {
+            std::vector<std::uint8_t> refine(s.faceCount());
+            for (auto& r : refine) r = std::uint8_t(rng() % 3 != 0);
+            if (i == 2) std::fill(refine.begin(), refine.end(), std::uint8_t(1));
+            const std::size_t predicted = s.facesAfterStep(refine);
+            s.step(refine);
+            CHECK(s.faceCount() == predicted);
+        }
+    }
+    // Open meshes: the even step splits a boundary edge instead of fanning the triangle beside
+    // it, which makes fewer polygons than the count: never more, and within one per boundary edge.
+    for (const Mesh& input : {test::openGridMesh(3), test::openCubeMesh()}) {
+        Sqrt2Subdivider s(input, "open");
+        for (int i = 0; i < 4; ++i) {
+            const std::vector<std::uint8_t> all(s.faceCount(), 1);
+            const std::size_t predicted = s.facesAfterStep(all);
+            const std::size_t boundary = checkTopology(s.mesh()).boundaryEdges;
+            s.step();
+            CHECK(s.faceCount() <= predicted);
+            CHECK(s.faceCount() + boundary >= predicted);
+        }
+    }
+    // Uniform steps: known before any work; a limit below the result stops them with the input's
+    // name, one above lets them run.
+    const Mesh torus = test::quadTorusMesh(12, 8, 2, 0.7); // 96 quads, 192 edges: 192 · 2^5 after 6 steps
+    Sqrt2Subdivider s(torus, "torus.obj");
+    const double sixSteps = 192.0 * 32 * Sqrt2Subdivider::kBytesPerFace;
+    s.setMemoryLimit(0.99 * sixSteps);
+    CHECK_NOTHROW(s.checkUniformSteps(5));
+    CHECK_THROWS_WITH(s.checkUniformSteps(6), Catch::Contains("torus.obj") && Catch::Contains("6 sqrt2 steps") &&
+                                                  Catch::Contains("refine it less"));
+    // Step by step: the step that would pass the limit stops before it changes anything.
+    for (int i = 0; i < 5; ++i) s.step();
+    CHECK(s.faceCount() == 192u * 16);
+    CHECK_THROWS_WITH(s.step(), Catch::Contains("torus.obj"));
+    CHECK(s.faceCount() == 192u * 16);
+    CHECK(s.stepsDone() == 5);
+    s.setMemoryLimit(1.01 * sixSteps);
+    s.step();
+    CHECK(s.faceCount() == 192u * 32);
+}
+
 TEST_CASE("subdivision output does not depend on the thread count") {
     const Mesh input = test::quadTorusMesh(9, 6, 2, 0.5);
     Mesh one, two;

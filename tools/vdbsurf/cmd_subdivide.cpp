@@ -90,6 +90,7 @@ void runSubdivide(const SubdivideOptions& o) {
     } else {
         Sqrt2Subdivider s(input, o.input);
         splitVertices = s.splitVertices();
+        s.checkUniformSteps(steps);
         for (int i = 0; i < steps; ++i) {
             s.step();
             processCancelToken().check();

@@ -7,11 +7,14 @@
 #include "vdbsurf/subdiv/sqrt2_subdivision.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/free_memory.h"
 #include "vdbsurf/subdiv/halfedge_mesh.h"
 #include "vdbsurf/subdiv/uniform_step.h"
 
-
 #include <algorithm>
+#include <cmath>
+#include <optional>
+#include <sstream>
 
 namespace vdbsurf {
 
@@ -34,6 +37,12 @@ struct Sqrt2Subdivider::Impl {
     const HalfedgeMesh& mesh() const { return meshes[current]; }
     int steps = 0;
     std::size_t splitVertices = 0;
+    std::string inputName;
+    double memoryLimit = 0; // bytes; 0: no limit known
+    bool limitGiven = false; // by setMemoryLimit, not from the memory free
+
+    std::size_t facesAfter(const std::vector<std::uint8_t>& refine, bool all) const;
+    void checkMemory(double faces, int stepsMore) const;
 
     std::uint32_t combine(std::uint32_t a, std::uint32_t b) const { return merge == TagMerge::Max ? std::max(a, b) : (a | b); }
 
@@ -41,6 +50,9 @@ struct Sqrt2Subdivider::Impl {
 };
 
 Sqrt2Subdivider::Sqrt2Subdivider(const Mesh& mesh, const std::string& inputName) : mImpl(new Impl) {
+    mImpl->inputName = inputName;
+    // Before the halfedge mesh takes its share: the limit covers everything the refinement holds.
+    if (const std::optional<std::size_t> freeBytes = availableMemoryBytes()) mImpl->memoryLimit = 0.8 * double(*freeBytes);
     HalfedgeMesh& m = mImpl->mesh();
     mImpl->splitVertices = subdiv::buildHalfedgeMesh(mesh, inputName, m);
     subdiv::FaceProperties& props = mImpl->props;
@@ -88,9 +100,56 @@ void Sqrt2Subdivider::step(const std::vector<std::uint8_t>& refine) {
     mImpl->step(refine);
 }
 
+void Sqrt2Subdivider::setMemoryLimit(double bytes) {
+    mImpl->limitGiven = bytes > 0;
+    if (bytes > 0) {
+        mImpl->memoryLimit = bytes;
+    } else {
+        const std::optional<std::size_t> freeBytes = availableMemoryBytes();
+        mImpl->memoryLimit = freeBytes ? 0.8 * double(*freeBytes) : 0.0;
+    }
+}
+
+std::size_t Sqrt2Subdivider::Impl::facesAfter(const std::vector<std::uint8_t>& refine, bool all) const {
+    const HalfedgeMesh& m = mesh();
+    if (all) return m.n_edges();
+    std::size_t faces = 0;
+    for (std::size_t f = 0; f < refine.size(); ++f) faces += refine[f] == 0;
+    for (const auto e : m.edges()) {
+        const auto f0 = m.face_handle(m.halfedge_handle(e, 0)), f1 = m.face_handle(m.halfedge_handle(e, 1));
+        faces += (f0.is_valid() && refine[std::size_t(f0.idx())]) || (f1.is_valid() && refine[std::size_t(f1.idx())]);
+    }
+    return faces;
+}
+
+std::size_t Sqrt2Subdivider::facesAfterStep(const std::vector<std::uint8_t>& refine) const {
+    if (refine.size() != faceCount()) throw std::invalid_argument("Sqrt2Subdivider::facesAfterStep: one flag per face");
+    return mImpl->facesAfter(refine, std::find(refine.begin(), refine.end(), 0) == refine.end());
+}
+
+void Sqrt2Subdivider::Impl::checkMemory(double faces, int stepsMore) const {
+    const double bytes = faces * kBytesPerFace;
+    if (memoryLimit <= 0 || bytes <= memoryLimit) return;
+    const double gib = double(1 << 30);
+    std::ostringstream s;
+    s.precision(3);
+    s << "refining it to " << steps + stepsMore << " sqrt2 steps would make about " << faces << " polygons, which need about "
+      << bytes / gib << " GiB, and " << memoryLimit / gib << " GiB may be used"
+      << (limitGiven ? "" : " (80 % of the memory free when it started)") << "; refine it less";
+    throw Error(inputName, s.str());
+}
+
+void Sqrt2Subdivider::checkUniformSteps(int steps) const {
+    if (steps <= 0) return;
+    // One polygon per edge after the first step; each further step doubles both.
+    mImpl->checkMemory(double(mImpl->mesh().n_edges()) * std::ldexp(1.0, steps - 1), steps);
+}
+
 void Sqrt2Subdivider::Impl::step(const std::vector<std::uint8_t>& refine) {
     const bool odd = steps % 2 == 0; // the step about to run is step steps + 1
-    if (!alwaysGeneral && std::find(refine.begin(), refine.end(), 0) == refine.end()) {
+    const bool all = std::find(refine.begin(), refine.end(), 0) == refine.end();
+    checkMemory(double(facesAfter(refine, all)), 1);
+    if (!alwaysGeneral && all) {
         HalfedgeMesh& next = meshes[1 - current];
         subdiv::refineEveryFace(mesh(), props, odd, merge == TagMerge::BitOr, next);
         releaseSpare(mesh(), props);
@@ -329,6 +388,7 @@ void Sqrt2Subdivider::edgeFaces(std::vector<std::pair<std::int64_t, std::int64_t
 
 Mesh subdivideUniform(const Mesh& mesh, int steps, const std::string& inputName) {
     Sqrt2Subdivider s(mesh, inputName);
+    s.checkUniformSteps(steps);
     for (int i = 0; i < steps; ++i) s.step();
     return s.mesh();
 }

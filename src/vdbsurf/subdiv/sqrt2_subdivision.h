@@ -60,8 +60,27 @@ public:
     void setAlwaysGeneral(bool general);
 
     // One √2 step refining the faces whose entry is non-zero (current face order), or all.
+    // Throws Error naming the input, before any work, when the refined mesh would take more
+    // than the memory limit (kBytesPerFace a polygon).
     void step(const std::vector<std::uint8_t>& refine);
     void step();
+
+    // The polygons a step refining these faces makes: the unrefined ones, and one per edge
+    // beside a refined face (a quad where both sides are refined, else the fan triangle that
+    // stays) — exact on closed meshes; on open ones the even step's boundary splits make up to
+    // one fewer per boundary edge. What the memory check counts.
+    std::size_t facesAfterStep(const std::vector<std::uint8_t>& refine) const;
+    // Throws the same Error before any work when `steps` more uniform steps would pass the
+    // limit: every step makes one polygon per edge, so the count after them is known now.
+    void checkUniformSteps(int steps) const;
+
+    // Bytes a refined mesh may take, as estimated per polygon; 0 (the default): 80 % of the
+    // memory free when the subdivider was made — past it the kernel would kill the process.
+    void setMemoryLimit(double bytes);
+    // What a polygon costs at the peak of a step and its output (both levels' halfedges, the
+    // Mesh handed out): measured 195 bytes on quad meshes; the estimate errs low, so a mesh that
+    // may just fit is still made.
+    static constexpr double kBytesPerFace = 160;
 
     Mesh mesh() const;                  // float positions, for writing
     std::vector<Vec3d> positions() const; // double positions, for comparisons
