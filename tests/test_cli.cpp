@@ -385,6 +385,13 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
                   now);
     expectFailure(dir, {"edit", dir.path("d.vdb"), "--set", "0.radii=1,0,1", "-o", dir.path("bad.vdb")}, "0.radii",
                   "'radii' must be positive", now);
+    // --remove counts by the scene's own numbers, whatever else is removed with it.
+    expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "1", "--remove", "2", "-o", dir.path("bad.vdb")}, "--remove",
+                  "no primitive 2 (the scene has 2,", now);
+    expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "0", "--remove", "0", "-o", dir.path("bad.vdb")}, "--remove",
+                  "primitive 0 is given twice", now);
+    expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "0", "--remove", "1", "-o", dir.path("bad.vdb")}, "d.vdb",
+                  "no primitive with op \"add\"", now);
     writeSphereFile(dir.path("plain.vdb"));
     const auto now2 = dir.files();
     expectFailure(dir, {"edit", dir.path("plain.vdb"), "--set", "0.falloff=1", "-o", dir.path("bad.vdb")}, "plain.vdb",

@@ -79,12 +79,15 @@ void runEdit(const EditOptions& o) {
     std::string json = file.sceneJson;
     for (const std::string& a : o.set) json = applySceneAssignment(json, a, source);
     std::vector<Primitive> prims = parseSceneText(json, source).primitives();
+    // By the numbers the scene had: removed from the highest down, so each number still holds.
     std::vector<int> removed = o.remove;
     std::sort(removed.rbegin(), removed.rend());
+    const std::size_t count = prims.size();
     for (std::size_t i = 0; i < removed.size(); ++i) {
-        if (removed[i] < 0 || std::size_t(removed[i]) >= prims.size() || (i > 0 && removed[i] == removed[i - 1]))
-            throw Error("--remove", "no primitive " + std::to_string(removed[i]) + " (the scene has " + std::to_string(prims.size()) +
+        if (removed[i] < 0 || std::size_t(removed[i]) >= count)
+            throw Error("--remove", "no primitive " + std::to_string(removed[i]) + " (the scene has " + std::to_string(count) +
                                         ", numbered from 0)");
+        if (i > 0 && removed[i] == removed[i - 1]) throw Error("--remove", "primitive " + std::to_string(removed[i]) + " is given twice");
         prims.erase(prims.begin() + removed[i]);
     }
     for (const std::string& text : o.add) {
