@@ -3,6 +3,7 @@
 #include "support/test_support.h"
 
 #include "support/shapes.h"
+#include "vdbsurf/core/threads.h"
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_io.h"
 #include "vdbsurf/reeb/bspline.h"
@@ -118,6 +119,11 @@ TEST_CASE("the same input at 1 and 2 threads gives byte-identical files") {
     const std::string a = test::readFile(dir.path("a.obj")), b = test::readFile(dir.path("b.obj"));
     CHECK(a.size() > 100000);
     CHECK(a == b);
+    // More threads than the machine has: the same file, and the count that ran is reported.
+    REQUIRE(runVdbsurf({"-q", "mesh", dir.path("s.vdb"), "-o", dir.path("c.obj"), "--threads", "100000", "--stats", dir.path("c.json")})
+                .exitCode == 0);
+    CHECK(test::readFile(dir.path("c.obj")) == a);
+    CHECK(nlohmann::json::parse(test::readFile(dir.path("c.json")))["threads"] == ThreadLimit::hardwareThreads());
 
     // .vdb files too: OpenVDB stamps each file with a random identifier, which vdbsurf replaces
     // by one from the contents — the same grids give the same file, other grids another one.

@@ -12,7 +12,9 @@ struct ThreadLimit::Impl {
 
 int ThreadLimit::hardwareThreads() { return tbb::info::default_concurrency(); }
 
-ThreadLimit::ThreadLimit(int threads) : mThreads(threads > 0 ? threads : hardwareThreads()) {
+// TBB's default arena never runs more workers than the hardware offers, whatever the limit, so
+// a request beyond it is reported (threads()) as what actually runs.
+ThreadLimit::ThreadLimit(int threads) : mThreads(threads > 0 && threads < hardwareThreads() ? threads : hardwareThreads()) {
     mImpl = std::make_unique<Impl>(mThreads);
 }
 

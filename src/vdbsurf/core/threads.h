@@ -6,7 +6,7 @@ namespace vdbsurf {
 
 class ThreadLimit {
 public:
-    // threads <= 0 means "all hardware threads".
+    // threads <= 0 means "all hardware threads"; more than the hardware has runs (and reports) as many as it has.
     explicit ThreadLimit(int threads);
     ~ThreadLimit();
     int threads() const { return mThreads; }
