@@ -5,6 +5,7 @@
 
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/threads.h"
+#include "vdbsurf/density/primitive_index.h"
 #include "vdbsurf/density/rasterize.h"
 #include "vdbsurf/density/scene_json.h"
 #include "vdbsurf/dmc/mesher.h"
@@ -442,6 +443,83 @@ TEST_CASE("random edits of random scenes equal full rebuilds, where blocks of ev
                 requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "random"), o).grid()));
             }
         }
+}
+
+TEST_CASE("a scene of thousands of primitives visits only those near a point or box, and gets what visiting all gives") {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1, 1), r(0.01, 0.05);
+    std::vector<Primitive> prims;
+    for (int i = 0; i < 2000; ++i) {
+        const Vec3d c(u(rng), u(rng), u(rng));
+        const DensityOp op = i % 7 == 3 ? DensityOp::Subtract : DensityOp::Add;
+        prims.push_back(i % 3 == 0 ? box(c, {r(rng), r(rng), r(rng)}, r(rng), {30.0 * u(rng), 40, 0}, op)
+                                   : ellipsoid(c, {r(rng), r(rng), r(rng)}, r(rng), {0, 50.0 * u(rng), 10}, op));
+    }
+    prims.push_back(ellipsoid({0, 0, 0}, {1.2, 0.1, 0.1}, 0.3)); // one long primitive across many cells
+    const DensityScene scene(prims, "blobs");
+    std::vector<std::uint32_t> all(prims.size());
+    for (std::uint32_t i = 0; i < all.size(); ++i) all[i] = i;
+
+    // The index itself: every box that holds a point is among the point's candidates, also on
+    // the boxes' faces and corners; and the candidates are few.
+    std::vector<Box3> boxes;
+    for (const PreparedPrimitive& q : scene.prepared()) boxes.push_back(q.influenceBox());
+    const PrimitiveIndex index(boxes);
+    REQUIRE(index.active());
+    std::size_t most = 0, missing = 0;
+    auto checkPoint = [&](const Vec3d& p) {
+        std::size_t count;
+        const std::uint32_t* near = index.at(p, count);
+        most = std::max(most, count);
+        for (std::uint32_t i = 0; i < boxes.size(); ++i)
+            if (boxes[i].contains(p) && !std::binary_search(near, near + count, i)) ++missing;
+    };
+    for (int k = 0; k < 3000; ++k) checkPoint({1.3 * u(rng), 1.3 * u(rng), 1.3 * u(rng)});
+    for (std::size_t i = 0; i < boxes.size(); i += 7) {
+        checkPoint(boxes[i].min);
+        checkPoint(boxes[i].max);
+        checkPoint({boxes[i].min.x, boxes[i].max.y, boxes[i].center().z});
+    }
+    CHECK(missing == 0);
+    CHECK(most < 100);
+
+    // The scene through it: bit for bit the sums, gradients and bounds of visiting every primitive.
+    std::size_t differ = 0;
+    for (int k = 0; k < 20000; ++k) {
+        const Vec3d p(1.2 * u(rng), 1.2 * u(rng), 1.2 * u(rng));
+        differ += scene.sum(p) != scene.sum(p, all);
+        Vec3d g;
+        for (const PreparedPrimitive& q : scene.prepared()) g += q.densityGradient(p) * q.sign();
+        const double s = scene.sum(p, all);
+        if (s > 0 && s < 1) differ += !(scene.gradient(p) == g);
+    }
+    CHECK(differ == 0);
+    std::vector<std::uint32_t> touching, reaching, expected;
+    for (int k = 0; k < 3000; ++k) {
+        const Vec3d c(1.2 * u(rng), 1.2 * u(rng), 1.2 * u(rng));
+        const double half = k % 10 == 0 ? 0.8 : 0.002 + 0.05 * (u(rng) + 1); // a few boxes span the scene (the scan's path)
+        const Box3 b{c - Vec3d(half, half, half), c + Vec3d(half, 0.7 * half, 1.3 * half)};
+        scene.primitivesTouching(b, touching);
+        expected.clear();
+        for (std::uint32_t i = 0; i < boxes.size(); ++i)
+            if (b.max.x >= boxes[i].min.x && b.max.y >= boxes[i].min.y && b.max.z >= boxes[i].min.z && boxes[i].max.x >= b.min.x &&
+                boxes[i].max.y >= b.min.y && boxes[i].max.z >= b.min.z)
+                expected.push_back(i);
+        differ += touching != expected;
+        const Interval got = scene.boundsReaching(b, reaching);
+        FixedInterval sum;
+        expected.clear();
+        for (std::uint32_t i = 0; i < boxes.size(); ++i) {
+            double lo, hi;
+            if (!scene.prepared()[i].reaches(b, lo, hi)) continue;
+            expected.push_back(i);
+            const FixedDensity a = FixedDensity(std::floor(lo * kFixedPerUnit)), z = FixedDensity(std::ceil(hi * kFixedPerUnit));
+            sum += prims[i].op == DensityOp::Add ? FixedInterval{a, z} : FixedInterval{-z, -a};
+        }
+        differ += reaching != expected;
+        differ += got.lo != clampDensity(fromFixed(sum.lo)) || got.hi != clampDensity(fromFixed(sum.hi));
+    }
+    CHECK(differ == 0);
 }
 
 TEST_CASE("the 0.5 surface of one sphere primitive lies half the falloff outside its core") {

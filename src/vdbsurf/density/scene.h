@@ -4,6 +4,7 @@
 // the rasterizer turns it into a sparse VDB fog volume.
 #pragma once
 #include "vdbsurf/density/primitive.h"
+#include "vdbsurf/density/primitive_index.h"
 #include "vdbsurf/field/field.h"
 
 #include <cstdint>
@@ -77,6 +78,7 @@ private:
     std::string mSource;
     std::optional<double> mVoxelSize;
     Box3 mDomain;
+    PrimitiveIndex mIndex; // which primitives can matter near a point or box
 };
 
 inline double clampDensity(double v) { return v < 0 ? 0.0 : (v > 1 ? 1.0 : v); }
