@@ -10,7 +10,7 @@
 namespace vdbsurf {
 
 // Rewrites the UUID in the header of the .vdb file at path (as OpenVDB 10 writes it: file
-// format 218 or later) with a version-8 UUID from a 128-bit hash of every other byte. Throws
+// format 218 or later) with a version-8 UUID from XXH3's 128-bit hash of every other byte. Throws
 // Error naming the path when it is not such a file or cannot be rewritten.
 void stampContentUuid(const std::string& path);
 
