@@ -14,6 +14,8 @@
 #include <bitset>
 #include <chrono>
 #include <cmath>
+#include <deque>
+#include <map>
 #include <sstream>
 #include <unordered_map>
 #include <unordered_set>
@@ -55,9 +57,12 @@ struct LeafResult {
     std::uint64_t voxels = 0, updated = 0;
 };
 
-bool samePrimitive(const Primitive& a, const Primitive& b) {
-    return a.core == b.core && a.center == b.center && a.size == b.size && a.rotationDegrees == b.rotationDegrees &&
-           a.falloff == b.falloff && a.weight == b.weight && a.op == b.op;
+// The fields that make a primitive's density (not its name), ordered as doubles are: two keys
+// are equivalent exactly when every field compares equal.
+using PrimitiveKey = std::array<double, 13>;
+PrimitiveKey keyOf(const Primitive& p) {
+    return {double(p.core), double(p.op), p.center.x, p.center.y, p.center.z, p.size.x, p.size.y, p.size.z,
+            p.rotationDegrees.x, p.rotationDegrees.y, p.rotationDegrees.z, p.falloff, p.weight};
 }
 
 // The primitives an edit changed: indices into the scene before (removed) and after (added).
@@ -468,13 +473,17 @@ struct DensityRaster::Impl {
         // rest may be reordered or renamed freely: they change nothing.
         const auto& before = scene.primitives();
         const auto& after = edited.primitives();
+        // Each primitive before is matched to the first unmatched equal one after (a map from the
+        // fields to the positions holding them: scenes of 10^5 blobs are matched in O(n log n)).
         std::vector<bool> keptBefore(before.size(), false), keptAfter(after.size(), false);
-        for (std::size_t i = 0; i < before.size(); ++i)
-            for (std::size_t j = 0; j < after.size(); ++j)
-                if (!keptAfter[j] && samePrimitive(before[i], after[j])) {
-                    keptBefore[i] = keptAfter[j] = true;
-                    break;
-                }
+        std::map<PrimitiveKey, std::deque<std::size_t>> positions;
+        for (std::size_t j = 0; j < after.size(); ++j) positions[keyOf(after[j])].push_back(j);
+        for (std::size_t i = 0; i < before.size(); ++i) {
+            const auto it = positions.find(keyOf(before[i]));
+            if (it == positions.end() || it->second.empty()) continue;
+            keptBefore[i] = keptAfter[it->second.front()] = true;
+            it->second.pop_front();
+        }
         Change change;
         for (std::uint32_t i = 0; i < before.size(); ++i)
             if (!keptBefore[i]) change.removed.push_back(i);
