@@ -522,6 +522,41 @@ TEST_CASE("a scene of thousands of primitives visits only those near a point or 
     CHECK(differ == 0);
 }
 
+TEST_CASE("rasterizing and meshing a many-primitive scene through the index gives the files scanning every primitive gives") {
+    initializeOpenVdb();
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<double> u(-1, 1), r(0.03, 0.12);
+    std::vector<Primitive> prims;
+    for (int i = 0; i < 150; ++i) {
+        const Vec3d c(u(rng), u(rng), u(rng));
+        const DensityOp op = i % 9 == 4 ? DensityOp::Subtract : DensityOp::Add;
+        prims.push_back(i % 4 == 0 ? box(c, {r(rng), r(rng), r(rng)}, r(rng), {20.0 * u(rng), 0, 30}, op)
+                                   : ellipsoid(c, {r(rng), r(rng), r(rng)}, r(rng), {0, 45.0 * u(rng), 0}, op));
+    }
+    const DensityScene indexed(prims, "blobs");
+    DensityScene scanned(prims, "blobs");
+    scanned.dropIndex();
+    REQUIRE(indexed.indexed());
+    REQUIRE(!scanned.indexed());
+    for (const bool surfaceOnly : {false, true}) {
+        RasterOptions o;
+        o.voxelSize = 0.0125;
+        o.surfaceOnly = surfaceOnly;
+        const DensityRaster a(indexed, o), b(scanned, o);
+        INFO("surface only " << surfaceOnly);
+        requireSameVoxels(*floatGrid(a.grid()), *floatGrid(b.grid()));
+        CHECK(a.stats().leavesEvaluated == b.stats().leavesEvaluated);
+        CHECK(a.stats().voxelsEvaluated == b.stats().voxelsEvaluated);
+    }
+    MeshRequest req;
+    req.voxelSize = 0.03;
+    MeshReport ra, rb;
+    const Mesh ma = meshField(indexed, req, ra), mb = meshField(scanned, req, rb);
+    CHECK(ma.points.size() > 1000);
+    CHECK(ma.points == mb.points);
+    CHECK(ma.indices == mb.indices);
+}
+
 TEST_CASE("the 0.5 surface of one sphere primitive lies half the falloff outside its core") {
     const DensityScene scene({ellipsoid({0.1, 0.2, -0.1}, {0.5, 0.5, 0.5}, 0.4)}, "sphere");
     MeshRequest req;

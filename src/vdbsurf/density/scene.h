@@ -67,6 +67,11 @@ public:
     FixedDensity fixedSum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
     FixedInterval contributionBoundsAround(std::uint32_t i, const Vec3d& centre, double radius) const;
 
+    // Scans every primitive instead of asking the index (same results, slower): for tests and
+    // benchmarks that compare the two.
+    void dropIndex() { mIndex = PrimitiveIndex(); }
+    bool indexed() const { return mIndex.active(); }
+
     const std::vector<Primitive>& primitives() const { return mPrimitives; }
     const std::vector<PreparedPrimitive>& prepared() const { return mPrepared; }
     const std::string& source() const { return mSource; }
