@@ -16,4 +16,10 @@ std::optional<std::size_t> availableMemoryBytes() {
     return std::nullopt;
 }
 
+double memoryBudgetBytes(double limit) {
+    if (limit > 0) return limit;
+    const std::optional<std::size_t> freeBytes = availableMemoryBytes();
+    return freeBytes ? 0.8 * double(*freeBytes) : 0.0;
+}
+
 } // namespace vdbsurf

@@ -10,4 +10,8 @@ namespace vdbsurf {
 // none where the system does not say.
 std::optional<std::size_t> availableMemoryBytes();
 
+// The bytes a long build may use: `limit` when it is given (> 0), else 80 % of the memory
+// available now, leaving room for everything else; 0 where the system does not say (no limit).
+double memoryBudgetBytes(double limit = 0);
+
 } // namespace vdbsurf

@@ -423,12 +423,7 @@ struct DensityRaster::Impl {
         grid->setName("density");
         grid->setGridClass(openvdb::GRID_FOG_VOLUME);
         grid->setTransform(voxelTransform(h(), "--voxel-size"));
-        if (options.memoryLimit > 0) {
-            memoryBudget = options.memoryLimit;
-        } else {
-            const std::optional<std::size_t> freeBytes = availableMemoryBytes();
-            memoryBudget = freeBytes ? 0.8 * double(*freeBytes) : 0.0;
-        }
+        memoryBudget = memoryBudgetBytes(options.memoryLimit);
 
         // The 128³ nodes that added density reaches (subtraction alone makes none).
         std::vector<Coord> nodes;

@@ -12,7 +12,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <optional>
 #include <sstream>
 
 namespace vdbsurf {
@@ -157,11 +156,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     Progress progress("lattice", blocks.size(), cancel);
     // Active cells counted as they are found, so that a lattice too fine for the machine stops
     // during this pass rather than minutes later, when the kernel kills the process.
-    double budget = memoryLimit;
-    if (!(budget > 0)) {
-        const std::optional<std::size_t> freeBytes = availableMemoryBytes();
-        budget = freeBytes ? 0.8 * double(*freeBytes) : 0.0;
-    }
+    const double budget = memoryBudgetBytes(memoryLimit);
     const std::uint64_t maxActive = budget > 0 ? std::uint64_t(budget / kMeshBytesPerActiveCell) : ~std::uint64_t(0);
     std::atomic<std::uint64_t> activeSoFar{0};
 

@@ -13,7 +13,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <optional>
 #include <sstream>
 
 namespace vdbsurf {
@@ -52,7 +51,7 @@ struct Sqrt2Subdivider::Impl {
 Sqrt2Subdivider::Sqrt2Subdivider(const Mesh& mesh, const std::string& inputName) : mImpl(new Impl) {
     mImpl->inputName = inputName;
     // Before the halfedge mesh takes its share: the limit covers everything the refinement holds.
-    if (const std::optional<std::size_t> freeBytes = availableMemoryBytes()) mImpl->memoryLimit = 0.8 * double(*freeBytes);
+    mImpl->memoryLimit = memoryBudgetBytes();
     HalfedgeMesh& m = mImpl->mesh();
     mImpl->splitVertices = subdiv::buildHalfedgeMesh(mesh, inputName, m);
     subdiv::FaceProperties& props = mImpl->props;
@@ -102,12 +101,7 @@ void Sqrt2Subdivider::step(const std::vector<std::uint8_t>& refine) {
 
 void Sqrt2Subdivider::setMemoryLimit(double bytes) {
     mImpl->limitGiven = bytes > 0;
-    if (bytes > 0) {
-        mImpl->memoryLimit = bytes;
-    } else {
-        const std::optional<std::size_t> freeBytes = availableMemoryBytes();
-        mImpl->memoryLimit = freeBytes ? 0.8 * double(*freeBytes) : 0.0;
-    }
+    mImpl->memoryLimit = memoryBudgetBytes(bytes);
 }
 
 std::size_t Sqrt2Subdivider::Impl::facesAfter(const std::vector<std::uint8_t>& refine, bool all) const {
