@@ -17,8 +17,9 @@ int PrimitiveIndex::cellIndex(double v, int axis) const {
     return c >= mDims[axis] ? mDims[axis] - 1 : int(c);
 }
 
-PrimitiveIndex::PrimitiveIndex(const std::vector<Box3>& boxes) : mPrimitives(boxes.size()) {
-    if (boxes.size() < kMinPrimitives) return;
+PrimitiveIndex::PrimitiveIndex(const std::vector<Box3>& boxes, bool grid) : mAll(boxes.size()) {
+    for (std::uint32_t i = 0; i < mAll.size(); ++i) mAll[i] = i;
+    if (!grid || boxes.size() < kMinPrimitives) return;
     Box3 all = boxes.front();
     std::vector<double> sizes;
     sizes.reserve(boxes.size());
@@ -67,6 +68,10 @@ PrimitiveIndex::PrimitiveIndex(const std::vector<Box3>& boxes) : mPrimitives(box
 }
 
 const std::uint32_t* PrimitiveIndex::at(const Vec3d& p, std::size_t& count) const {
+    if (!active()) {
+        count = mAll.size();
+        return mAll.data();
+    }
     count = 0;
     for (std::size_t a = 0; a < 3; ++a) // outside the grid no influence box holds p
         if (!(p[a] >= mOrigin[a] && p[a] <= mOrigin[a] + mCell * mDims[a])) return nullptr;
@@ -77,8 +82,12 @@ const std::uint32_t* PrimitiveIndex::at(const Vec3d& p, std::size_t& count) cons
     return mEntries.data() + mOffsets[c];
 }
 
-bool PrimitiveIndex::over(const Box3& box, std::vector<std::uint32_t>& out) const {
+void PrimitiveIndex::over(const Box3& box, std::vector<std::uint32_t>& out) const {
     out.clear();
+    if (!active()) {
+        out = mAll;
+        return;
+    }
     const int x0 = cellIndex(box.min.x, 0), x1 = cellIndex(box.max.x, 0), y0 = cellIndex(box.min.y, 1), y1 = cellIndex(box.max.y, 1);
     const int z0 = cellIndex(box.min.z, 2), z1 = cellIndex(box.max.z, 2);
     std::size_t listed = 0;
@@ -87,7 +96,10 @@ bool PrimitiveIndex::over(const Box3& box, std::vector<std::uint32_t>& out) cons
             const std::size_t row = (std::size_t(z) * std::size_t(mDims[1]) + std::size_t(y)) * std::size_t(mDims[0]);
             listed += mOffsets[row + std::size_t(x1) + 1] - mOffsets[row + std::size_t(x0)];
         }
-    if (listed > mPrimitives / 2) return false; // gathering and sorting would cost more than a scan
+    if (listed > mAll.size() / 2) { // gathering and sorting would cost more than a scan
+        out = mAll;
+        return;
+    }
     out.reserve(listed);
     for (int z = z0; z <= z1; ++z)
         for (int y = y0; y <= y1; ++y) {
@@ -98,7 +110,6 @@ bool PrimitiveIndex::over(const Box3& box, std::vector<std::uint32_t>& out) cons
         std::sort(out.begin(), out.end());
         out.erase(std::unique(out.begin(), out.end()), out.end());
     }
-    return true;
 }
 
 } // namespace vdbsurf

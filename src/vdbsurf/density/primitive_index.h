@@ -19,18 +19,17 @@ namespace vdbsurf {
 class PrimitiveIndex {
 public:
     PrimitiveIndex() = default;
-    // Few primitives, or boxes that overlap so much that lists would not be shorter than the
-    // scene: no grid is built and every query answers "all".
-    explicit PrimitiveIndex(const std::vector<Box3>& influenceBoxes);
+    // With `grid` false, or few primitives, or boxes that overlap so much that lists would not
+    // be shorter than the scene, no grid is built and every query answers "all".
+    explicit PrimitiveIndex(const std::vector<Box3>& influenceBoxes, bool grid = true);
 
-    bool active() const { return !mOffsets.empty(); }
+    bool active() const { return !mOffsets.empty(); } // a grid was built
 
-    // Candidates at p: a pointer to `count` ascending indices. Outside every box: none. Only
-    // when active().
+    // Candidates at p: a pointer to `count` ascending indices (none outside every box).
     const std::uint32_t* at(const Vec3d& p, std::size_t& count) const;
-    // Candidates over a box, ascending and without repeats, into out; false when the box spans
-    // so many cells that scanning every primitive is cheaper (out is then left empty).
-    bool over(const Box3& box, std::vector<std::uint32_t>& out) const;
+    // Candidates over a box, ascending and without repeats, into out: every primitive when the
+    // box spans so many cells that gathering them would cost more than a scan.
+    void over(const Box3& box, std::vector<std::uint32_t>& out) const;
 
 private:
     int cellIndex(double v, int axis) const;
@@ -39,7 +38,7 @@ private:
     int mDims[3] = {0, 0, 0};
     std::vector<std::uint32_t> mOffsets; // per cell (x fastest), into mEntries; one more at the end
     std::vector<std::uint32_t> mEntries;
-    std::size_t mPrimitives = 0;
+    std::vector<std::uint32_t> mAll; // 0 … n − 1: the answer without a grid
 };
 
 } // namespace vdbsurf

@@ -42,10 +42,14 @@ DensityScene::DensityScene(std::vector<Primitive> primitives, std::string source
                                      std::to_string(int(kMaxWeight)));
     // Only added density can reach 0.5: a scene of subtractions alone has no surface.
     if (!any) throw Error(mSource, "has no primitive with op \"add\", so it has no surface");
+    buildIndex(true);
+}
+
+void DensityScene::buildIndex(bool grid) {
     std::vector<Box3> boxes;
     boxes.reserve(mPrepared.size());
     for (const PreparedPrimitive& p : mPrepared) boxes.push_back(p.influenceBox());
-    mIndex = PrimitiveIndex(boxes);
+    mIndex = PrimitiveIndex(boxes, grid);
 }
 
 LatticeFrame DensityScene::naturalFrame(double h) const {
@@ -67,13 +71,9 @@ FixedDensity DensityScene::fixedSum(const Vec3d& p, const std::vector<std::uint3
 
 double DensityScene::sum(const Vec3d& p) const {
     FixedDensity s = 0;
-    if (mIndex.active()) {
-        std::size_t count;
-        const std::uint32_t* near = mIndex.at(p, count);
-        for (std::size_t k = 0; k < count; ++k) s += contribution(near[k], p);
-    } else {
-        for (std::uint32_t i = 0; i < mPrepared.size(); ++i) s += contribution(i, p);
-    }
+    std::size_t count;
+    const std::uint32_t* near = mIndex.at(p, count);
+    for (std::size_t k = 0; k < count; ++k) s += contribution(near[k], p);
     return fromFixed(s);
 }
 
@@ -91,25 +91,16 @@ Vec3d DensityScene::gradient(const Vec3d& p) const {
     const double s = sum(p);
     if (s <= 0 || s >= 1) return {}; // the clamp is flat there
     Vec3d g;
-    if (mIndex.active()) {
-        std::size_t count;
-        const std::uint32_t* near = mIndex.at(p, count);
-        for (std::size_t k = 0; k < count; ++k) g += mPrepared[near[k]].densityGradient(p) * mPrepared[near[k]].sign();
-    } else {
-        for (const PreparedPrimitive& q : mPrepared) g += q.densityGradient(p) * q.sign();
-    }
+    std::size_t count;
+    const std::uint32_t* near = mIndex.at(p, count);
+    for (std::size_t k = 0; k < count; ++k) g += mPrepared[near[k]].densityGradient(p) * mPrepared[near[k]].sign();
     return g;
 }
 
 void DensityScene::primitivesTouching(const Box3& box, std::vector<std::uint32_t>& out) const {
-    if (mIndex.active() && mIndex.over(box, out)) {
-        out.erase(std::remove_if(out.begin(), out.end(), [&](std::uint32_t i) { return !overlaps(mPrepared[i].influenceBox(), box); }),
-                  out.end());
-        return;
-    }
-    out.clear();
-    for (std::uint32_t i = 0; i < mPrepared.size(); ++i)
-        if (overlaps(mPrepared[i].influenceBox(), box)) out.push_back(i);
+    mIndex.over(box, out);
+    out.erase(std::remove_if(out.begin(), out.end(), [&](std::uint32_t i) { return !overlaps(mPrepared[i].influenceBox(), box); }),
+              out.end());
 }
 
 Interval DensityScene::bounds(const Box3& box, const std::vector<std::uint32_t>& among) const {
@@ -131,14 +122,9 @@ Interval DensityScene::boundsReaching(const Box3& box, std::vector<std::uint32_t
         return true;
     };
     // A primitive reaches no box its influence box misses (densityBounds' first test), so the
-    // index's candidates are all that can; in ascending order, as the full scan lists them.
-    if (mIndex.active() && mIndex.over(box, reaching)) {
-        reaching.erase(std::remove_if(reaching.begin(), reaching.end(), [&](std::uint32_t i) { return !consider(i); }), reaching.end());
-        return clampedInterval(sum);
-    }
-    reaching.clear();
-    for (std::uint32_t i = 0; i < mPrepared.size(); ++i)
-        if (consider(i)) reaching.push_back(i);
+    // index's candidates are all that can; in ascending order, as a scan of all lists them.
+    mIndex.over(box, reaching);
+    reaching.erase(std::remove_if(reaching.begin(), reaching.end(), [&](std::uint32_t i) { return !consider(i); }), reaching.end());
     return clampedInterval(sum);
 }
 

@@ -69,7 +69,7 @@ public:
 
     // Scans every primitive instead of asking the index (same results, slower): for tests and
     // benchmarks that compare the two.
-    void dropIndex() { mIndex = PrimitiveIndex(); }
+    void dropIndex() { buildIndex(false); }
     bool indexed() const { return mIndex.active(); }
 
     const std::vector<Primitive>& primitives() const { return mPrimitives; }
@@ -84,6 +84,8 @@ private:
     std::optional<double> mVoxelSize;
     Box3 mDomain;
     PrimitiveIndex mIndex; // which primitives can matter near a point or box
+
+    void buildIndex(bool grid);
 };
 
 inline double clampDensity(double v) { return v < 0 ? 0.0 : (v > 1 ? 1.0 : v); }
