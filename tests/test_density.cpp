@@ -48,6 +48,20 @@ std::vector<Primitive> testScene() {
             ellipsoid({0.1, -0.55, 0.1}, {0.3, 0.12, 0.12}, 0.2, {0, 0, 70})};
 }
 
+// Small random boxes and ellipsoids, rotated, one in seven subtracting, in [-1, 1]³ (what the
+// primitive index is for: a particle system as metaballs).
+std::vector<Primitive> randomBlobs(std::mt19937& rng, int count, double smallest, double largest) {
+    std::uniform_real_distribution<double> u(-1, 1), r(smallest, largest);
+    std::vector<Primitive> prims;
+    for (int i = 0; i < count; ++i) {
+        const Vec3d c(u(rng), u(rng), u(rng));
+        const DensityOp op = i % 7 == 3 ? DensityOp::Subtract : DensityOp::Add;
+        prims.push_back(i % 3 == 0 ? box(c, {r(rng), r(rng), r(rng)}, r(rng), {30.0 * u(rng), 40, 0}, op)
+                                   : ellipsoid(c, {r(rng), r(rng), r(rng)}, r(rng), {0, 50.0 * u(rng), 10}, op));
+    }
+    return prims;
+}
+
 openvdb::FloatGrid::Ptr floatGrid(const GridBasePtr& g) { return openvdb::GridBase::grid<openvdb::FloatGrid>(g); }
 
 // Every voxel either grid holds (active or not, tiles included): same value and state.
@@ -447,14 +461,8 @@ TEST_CASE("random edits of random scenes equal full rebuilds, where blocks of ev
 
 TEST_CASE("a scene of thousands of primitives visits only those near a point or box, and gets what visiting all gives") {
     std::mt19937 rng(5);
-    std::uniform_real_distribution<double> u(-1, 1), r(0.01, 0.05);
-    std::vector<Primitive> prims;
-    for (int i = 0; i < 2000; ++i) {
-        const Vec3d c(u(rng), u(rng), u(rng));
-        const DensityOp op = i % 7 == 3 ? DensityOp::Subtract : DensityOp::Add;
-        prims.push_back(i % 3 == 0 ? box(c, {r(rng), r(rng), r(rng)}, r(rng), {30.0 * u(rng), 40, 0}, op)
-                                   : ellipsoid(c, {r(rng), r(rng), r(rng)}, r(rng), {0, 50.0 * u(rng), 10}, op));
-    }
+    std::uniform_real_distribution<double> u(-1, 1);
+    std::vector<Primitive> prims = randomBlobs(rng, 2000, 0.01, 0.05);
     prims.push_back(ellipsoid({0, 0, 0}, {1.2, 0.1, 0.1}, 0.3)); // one long primitive across many cells
     const DensityScene scene(prims, "blobs");
     std::vector<std::uint32_t> all(prims.size());
@@ -525,14 +533,7 @@ TEST_CASE("a scene of thousands of primitives visits only those near a point or 
 TEST_CASE("rasterizing and meshing a many-primitive scene through the index gives the files scanning every primitive gives") {
     initializeOpenVdb();
     std::mt19937 rng(9);
-    std::uniform_real_distribution<double> u(-1, 1), r(0.03, 0.12);
-    std::vector<Primitive> prims;
-    for (int i = 0; i < 150; ++i) {
-        const Vec3d c(u(rng), u(rng), u(rng));
-        const DensityOp op = i % 9 == 4 ? DensityOp::Subtract : DensityOp::Add;
-        prims.push_back(i % 4 == 0 ? box(c, {r(rng), r(rng), r(rng)}, r(rng), {20.0 * u(rng), 0, 30}, op)
-                                   : ellipsoid(c, {r(rng), r(rng), r(rng)}, r(rng), {0, 45.0 * u(rng), 0}, op));
-    }
+    const std::vector<Primitive> prims = randomBlobs(rng, 150, 0.03, 0.12);
     const DensityScene indexed(prims, "blobs");
     DensityScene scanned(prims, "blobs");
     scanned.dropIndex();
