@@ -285,6 +285,34 @@ TEST_CASE("surface-only work follows the surface, not the nodes it passes throug
     CHECK(s.blocksDecided < s.leavesDecided / 2);
 }
 
+TEST_CASE("an edit of a large primitive tests blocks along the surface, not through its influence") {
+    initializeOpenVdb();
+    // Moving the one sphere changes its whole surface: the edit redoes about what a build does.
+    // Where a changed primitive reaches is asked of the blocks the descent visits (a few per
+    // surface leaf), so halving the voxel size multiplies those tests by about 4, as the surface's
+    // leaves; asking every block of the influence box would multiply them by 8.
+    const DensityScene before({ellipsoid({0.1, -0.05, 0.02}, {0.5, 0.5, 0.5}, 0.2)}, "sphere");
+    const DensityScene after({ellipsoid({0.13, -0.06, 0.04}, {0.5, 0.5, 0.5}, 0.2)}, "sphere moved");
+    std::uint64_t tests[2], decided[2];
+    for (int i = 0; i < 2; ++i) {
+        RasterOptions o;
+        o.voxelSize = i == 0 ? 0.004 : 0.002;
+        o.surfaceOnly = true;
+        o.keepSums = true;
+        DensityRaster raster(before, o);
+        const RasterStats& s = raster.update(after);
+        tests[i] = s.reachTests;
+        decided[i] = s.leavesDecided;
+        // The influence box of both spheres holds (1.43 / h / 8)³ leaves.
+        const double boxLeaves = std::pow(1.43 / o.voxelSize / 8, 3);
+        INFO("h " << o.voxelSize << ": reach tests " << tests[i] << ", leaves decided " << decided[i] << ", box leaves " << boxLeaves);
+        CHECK(double(tests[i]) < boxLeaves / 2);
+        CHECK(tests[i] < 3 * decided[i]);
+    }
+    INFO("reach tests " << tests[0] << " -> " << tests[1]);
+    CHECK(double(tests[1]) < 5.0 * double(tests[0]));
+}
+
 TEST_CASE("a raster that would outgrow its memory stops with an error naming the voxel size") {
     initializeOpenVdb();
     const DensityScene scene(testScene(), "test");

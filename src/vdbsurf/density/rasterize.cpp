@@ -18,7 +18,6 @@
 #include <map>
 #include <sstream>
 #include <unordered_map>
-#include <unordered_set>
 
 namespace vdbsurf {
 
@@ -34,8 +33,6 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 constexpr int kLeaf = 8, kNode = 128;
 // Blocks decided whole before their leaves: a node, then halves of it down to 16³, so the
 // leaves asked for bounds follow the surface instead of filling every node it passes through.
-constexpr int kLevels = 5; // 128, 64, 32, 16, 8
-constexpr int levelOf(int n) { return n == 128 ? 0 : n == 64 ? 1 : n == 32 ? 2 : n == 16 ? 3 : 4; }
 constexpr int kBlock = 2, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
 
 enum class Fill { Empty, Full, Exact };
@@ -74,7 +71,6 @@ struct Change {
 struct CoordHash {
     std::size_t operator()(const Coord& c) const { return c.hash<20>(); }
 };
-using CoordSet = std::unordered_set<Coord, CoordHash>;
 
 // A block of n³ voxels that one decision fills whole.
 struct BlockFill {
@@ -88,14 +84,9 @@ struct BlockFill {
 struct NodePlan {
     std::vector<BlockFill> fills;
     std::vector<Coord> leaves;
-    std::uint64_t fullLeaves = 0, blocksDecided = 0;
+    std::uint64_t fullLeaves = 0, blocksDecided = 0, reachTests = 0;
 };
 
-// Where an edit can change anything, per level (index levelOf(n)): blocks some changed
-// primitive reaches (touched), and those with a touched block inside (region).
-struct EditSets {
-    std::array<CoordSet, kLevels> touched, region;
-};
 
 template <typename F> void forEachChild(const Coord& origin, int n, F&& f) {
     const int m = n / 2;
@@ -338,34 +329,61 @@ struct DensityRaster::Impl {
         });
     }
 
+    // Whether a primitive the edit changed takes part in a box, before (removed) or after (added):
+    // the test a leaf's rule applies to its reach (PreparedPrimitive::reaches), so it agrees
+    // with the leaves on where a changed primitive adds something.
+    bool changeReaches(const Change& change, const Box3& box) const {
+        double lo, hi;
+        for (std::uint32_t i : change.removed)
+            if (change.before->prepared()[i].reaches(box, lo, hi)) return true;
+        for (std::uint32_t j : change.added)
+            if (scene.prepared()[j].reaches(box, lo, hi)) return true;
+        return false;
+    }
+    // Whether a block may hold a block, at any level below it, that a changed primitive reaches:
+    // its reach grown by a voxel holds every descendant's reach, and a voxel's margin is far
+    // beyond the rounding of the distances the test compares.
+    bool changeMayReachInside(const Change& change, const Coord& origin, int n) const {
+        return changeReaches(change, blockBox(origin, n, reachGrow() + 1));
+    }
+
     // An edit's descent, under a block whose voxels the edit left decided by `oldChain` (Exact:
     // by the blocks and leaves below). A block's decision depends only on the primitives reaching
-    // it, so it can differ only where a changed primitive reaches (touched); the walk goes where
-    // a touched block lies below or the old fill must give way, and compares old and new fills.
-    void planEdit(const Coord& origin, int n, Fill oldChain, const DensityScene& before, const EditSets& sets,
-                  NodePlan& plan) const {
-        const int level = levelOf(n);
-        const bool inRegion = sets.region[level].count(origin) != 0;
-        if (oldChain == Fill::Exact && !inRegion) return; // nothing below it can change
+    // it, so it can differ only where a changed primitive reaches; the walk goes where such a
+    // block may lie below or the old fill must give way, and compares old and new fills. The
+    // tests run here, per block visited and in parallel, rather than over every block of the
+    // changed primitives' influence boxes: those hold volume, and the blocks visited follow the
+    // surface.
+    void planEdit(const Coord& origin, int n, Fill oldChain, const Change& change, NodePlan& plan) const {
         if (n == kLeaf) {
-            plan.leaves.push_back(origin); // it was filled from above, or a changed primitive reaches it
+            // Filled from above, or a changed primitive takes part in the leaf's rule.
+            if (oldChain == Fill::Exact) {
+                ++plan.reachTests;
+                if (!changeReaches(change, reachBox(origin))) return;
+            }
+            plan.leaves.push_back(origin);
             return;
+        }
+        if (oldChain == Fill::Exact) {
+            ++plan.reachTests;
+            if (!changeMayReachInside(change, origin, n)) return; // nothing below it can change
         }
         ++plan.blocksDecided;
         const Fill newFill = decideBlock(scene, origin, n);
         Fill oldFill = oldChain;
         if (oldChain == Fill::Exact) {
             oldFill = newFill;
-            if (sets.touched[level].count(origin)) {
+            ++plan.reachTests;
+            if (changeReaches(change, blockBox(origin, n, reachGrow()))) {
                 ++plan.blocksDecided;
-                oldFill = decideBlock(before, origin, n);
+                oldFill = decideBlock(*change.before, origin, n);
             }
         }
         if (newFill != Fill::Exact) {
             if (oldFill != newFill) plan.fills.push_back({origin, n, newFill});
             return;
         }
-        forEachChild(origin, n, [&](const Coord& c) { planEdit(c, n / 2, oldFill, before, sets, plan); });
+        forEachChild(origin, n, [&](const Coord& c) { planEdit(c, n / 2, oldFill, change, plan); });
     }
 
     // Writes a block's fill; `replacing` when the tree may hold something there.
@@ -397,12 +415,12 @@ struct DensityRaster::Impl {
     // Descends every node in parallel, computes the leaves the descents leave open in one
     // parallel loop, and returns each node's plan with its leaves' results (in plan order).
     void runPlans(const std::vector<Coord>& nodes, std::vector<NodePlan>& plans, std::vector<LeafResult>& results,
-                  const Change* change, const EditSets* sets) {
+                  const Change* change) {
         plans.assign(nodes.size(), NodePlan());
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nodes.size(), 1), [&](const auto& range) {
             if (options.cancel) options.cancel->check();
             for (std::size_t i = range.begin(); i != range.end(); ++i) {
-                if (change) planEdit(nodes[i], kNode, Fill::Exact, *change->before, *sets, plans[i]);
+                if (change) planEdit(nodes[i], kNode, Fill::Exact, *change, plans[i]);
                 else planBuild(nodes[i], kNode, plans[i]);
             }
         });
@@ -410,6 +428,7 @@ struct DensityRaster::Impl {
         for (const NodePlan& p : plans) {
             origins.insert(origins.end(), p.leaves.begin(), p.leaves.end());
             stats.blocksDecided += p.blocksDecided;
+            stats.reachTests += p.reachTests;
         }
         computeLeaves(origins, results, change);
         stats.leavesDecided += origins.size();
@@ -443,7 +462,7 @@ struct DensityRaster::Impl {
         std::vector<LeafResult> results;
         for (std::size_t batch = 0; batch < nodes.size(); batch += kNodesPerBatch) {
             batchNodes.assign(nodes.begin() + std::ptrdiff_t(batch), nodes.begin() + std::ptrdiff_t(std::min(nodes.size(), batch + kNodesPerBatch)));
-            runPlans(batchNodes, plans, results, nullptr, nullptr);
+            runPlans(batchNodes, plans, results, nullptr);
             auto next = results.begin();
             for (std::size_t n = 0; n < plans.size(); ++n) {
                 const auto first = next;
@@ -485,35 +504,23 @@ struct DensityRaster::Impl {
         for (std::uint32_t j = 0; j < after.size(); ++j)
             if (!keptAfter[j]) change.added.push_back(j);
 
-        // The blocks, at every level, a changed primitive takes part in before or after.
-        // Elsewhere it adds exactly 0, so their decisions and voxels are what they were.
-        EditSets sets;
-        auto reached = [&](const PreparedPrimitive& p) {
-            std::vector<Coord> blocks;
-            double lo, hi;
-            for (int n = kNode; n >= kLeaf; n /= 2) {
-                blocks.clear();
-                blocksIn(p.influenceBox(), n, blocks);
-                for (const Coord& c : blocks) {
-                    if (!p.reaches(blockBox(c, n, reachGrow()), lo, hi)) continue;
-                    sets.touched[levelOf(n)].insert(c);
-                    // Up to the first block already in the region: its ancestors are there too.
-                    for (int m = n; m <= kNode; m *= 2)
-                        if (!sets.region[levelOf(m)].insert(Coord(c.x() & ~(m - 1), c.y() & ~(m - 1), c.z() & ~(m - 1))).second) break;
-                }
-            }
-        };
-        for (std::uint32_t i : change.removed) reached(scene.prepared()[i]);
-        for (std::uint32_t j : change.added) reached(edited.prepared()[j]);
-        std::vector<Coord> nodes(sets.region[0].begin(), sets.region[0].end());
-        std::sort(nodes.begin(), nodes.end());
-
         const DensityScene old = std::move(scene);
         scene = edited;
         change.before = &old;
+        // The 128³ nodes where a changed primitive may take part, before or after. Elsewhere it
+        // adds exactly 0, so their decisions and voxels are what they were.
+        std::vector<Coord> nodes;
+        auto nodesOf = [&](const PreparedPrimitive& p) { blocksIn(p.influenceBox(), kNode, nodes); };
+        for (std::uint32_t i : change.removed) nodesOf(old.prepared()[i]);
+        for (std::uint32_t j : change.added) nodesOf(scene.prepared()[j]);
+        std::sort(nodes.begin(), nodes.end());
+        nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+        stats.reachTests = nodes.size();
+        nodes.erase(std::remove_if(nodes.begin(), nodes.end(), [&](const Coord& c) { return !changeMayReachInside(change, c, kNode); }),
+                    nodes.end());
         std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
-        runPlans(nodes, plans, results, &change, &sets);
+        runPlans(nodes, plans, results, &change);
         std::uint64_t refilled = 0;
         for (const NodePlan& p : plans)
             for (const BlockFill& f : p.fills) {

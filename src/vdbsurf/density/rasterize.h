@@ -44,6 +44,7 @@ struct RasterStats {
     std::uint64_t voxelsEvaluated = 0; // voxels whose sum was computed from every primitive
     std::uint64_t voxelsUpdated = 0;   // edits with keepSums: voxels corrected by the changed ones
     std::uint64_t leavesRecomputed = 0; // edits: leaves decided again or refilled by a block
+    std::uint64_t reachTests = 0;       // edits: blocks and leaves tested for a changed primitive's reach
     double seconds = 0;
 };
 
