@@ -30,9 +30,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-constexpr int kLeaf = 8, kNode = 128;
-// Blocks decided whole before their leaves: a node, then halves of it down to 16³, so the
+// Blocks are decided whole before their leaves: a node, then halves of it down to 16³, so the
 // leaves asked for bounds follow the surface instead of filling every node it passes through.
+constexpr int kLeaf = 8, kNode = 128;
+// Surface-only leaves are decided per 2³ block.
 constexpr int kBlock = 2, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
 
 enum class Fill { Empty, Full, Exact };
@@ -86,7 +87,6 @@ struct NodePlan {
     std::vector<Coord> leaves;
     std::uint64_t fullLeaves = 0, blocksDecided = 0, reachTests = 0;
 };
-
 
 template <typename F> void forEachChild(const Coord& origin, int n, F&& f) {
     const int m = n / 2;
