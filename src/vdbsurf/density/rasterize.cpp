@@ -507,17 +507,15 @@ struct DensityRaster::Impl {
         const DensityScene old = std::move(scene);
         scene = edited;
         change.before = &old;
-        // The 128³ nodes where a changed primitive may take part, before or after. Elsewhere it
-        // adds exactly 0, so their decisions and voxels are what they were.
+        // The 128³ nodes a changed primitive's influence box meets, before or after (the descent
+        // asks each whether the primitive reaches it). Elsewhere it adds exactly 0, so their
+        // decisions and voxels are what they were.
         std::vector<Coord> nodes;
         auto nodesOf = [&](const PreparedPrimitive& p) { blocksIn(p.influenceBox(), kNode, nodes); };
         for (std::uint32_t i : change.removed) nodesOf(old.prepared()[i]);
         for (std::uint32_t j : change.added) nodesOf(scene.prepared()[j]);
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-        stats.reachTests = nodes.size();
-        nodes.erase(std::remove_if(nodes.begin(), nodes.end(), [&](const Coord& c) { return !changeMayReachInside(change, c, kNode); }),
-                    nodes.end());
         std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
         runPlans(nodes, plans, results, &change);
