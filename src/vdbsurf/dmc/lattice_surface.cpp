@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bitset>
 #include <chrono>
 #include <stdexcept>
 #include <unordered_map>
@@ -88,6 +89,36 @@ bool anyActiveNode(Accessor& acc, const Coord& origin) {
         if (acc.probeConstLeaf(lo) || acc.isValueOn(lo)) return true;
     }
     return false;
+}
+
+// The nodes of the leaf at `origin` (its 9^3 block, by leafNodeIndex) that are active in a
+// node-mask tree; false if none is. One probe per 8^3 block of the tree and its few active bits,
+// instead of a tree probe per node asked about.
+template <typename Accessor>
+bool activeLeafNodes(Accessor& acc, const Coord& origin, std::bitset<kLeafNodeCount>& on) {
+    on.reset();
+    bool any = false;
+    for (int d = 0; d < 8; ++d) {
+        const Coord lo = nodeBlock(origin, d);
+        // Of the tree's 8^3 block at lo, the leaf's block holds all of it (d = 0) or only its first
+        // layer along each axis d steps onto.
+        const int nx = (d & 1) ? 1 : 8, ny = (d & 2) ? 1 : 8, nz = (d & 4) ? 1 : 8;
+        const int rx = (d & 1) * 8, ry = ((d >> 1) & 1) * 8, rz = ((d >> 2) & 1) * 8;
+        if (const auto* leaf = acc.probeConstLeaf(lo)) {
+            for (auto it = leaf->getValueMask().beginOn(); it; ++it) {
+                const int pos = int(it.pos()), x = pos >> 6, y = (pos >> 3) & 7, z = pos & 7;
+                if (x >= nx || y >= ny || z >= nz) continue;
+                on.set(std::size_t(leafNodeIndex(rx + x, ry + y, rz + z)));
+                any = true;
+            }
+        } else if (acc.isValueOn(lo)) {
+            for (int z = 0; z < nz; ++z)
+                for (int y = 0; y < ny; ++y)
+                    for (int x = 0; x < nx; ++x) on.set(std::size_t(leafNodeIndex(rx + x, ry + y, rz + z)));
+            any = true;
+        }
+    }
+    return any;
 }
 
 } // namespace
@@ -441,6 +472,7 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const NodeMaskTree, false> onSurface(*deformation.onSurface);
         openvdb::tree::ValueAccessor<const OffsetTree, false> offsets(*deformation.offsets);
+        std::bitset<kLeafNodeCount> featureNode;
         auto placed = [&](const Coord& n) {
             const openvdb::Vec3f o = offsets.getValue(n);
             return Vec3f(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(o.x(), o.y(), o.z()));
@@ -449,7 +481,11 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
             LeafWork& w = im.work[li];
             if (w.vertices.empty()) continue;
             // Only nodes of this leaf's block (origin .. origin + 8) can be edge ends here.
-            if (!anyActiveNode(onSurface, w.origin)) continue;
+            if (!activeLeafNodes(onSurface, w.origin, featureNode)) continue;
+            auto onFeature = [&](const Coord& n) {
+                const Coord d = n - w.origin;
+                return featureNode.test(std::size_t(leafNodeIndex(d.x(), d.y(), d.z())));
+            };
             // Vertices already on a node (a data node at the iso value): (vertex, node), by vertex.
             std::vector<std::pair<std::uint32_t, Coord>> atDataNode(w.nodeVertices.begin(), w.nodeVertices.end());
             std::sort(atDataNode.begin(), atDataNode.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
@@ -476,17 +512,17 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
                         // where the edge's first end is on a feature, it goes there, as in a
                         // surface built on the deformed lattice (both ends hold the iso value
                         // then, and the first end carries the crossing).
-                        if (onSurface.isValueOn(data->second)) {
+                        if (onFeature(data->second)) {
                             w.vertices[v] = placed(data->second);
                             ++movedPerLeaf[li];
-                        } else if (data->second == b && onSurface.isValueOn(a)) {
+                        } else if (data->second == b && onFeature(a)) {
                             w.vertices[v] = placed(a);
                             toFirstEnd.emplace_back(v, a);
                             ++movedPerLeaf[li];
                         }
                         continue;
                     }
-                    const Coord* n = onSurface.isValueOn(a) ? &a : (onSurface.isValueOn(b) ? &b : nullptr);
+                    const Coord* n = onFeature(a) ? &a : (onFeature(b) ? &b : nullptr);
                     if (!n) continue;
                     w.vertices[v] = placed(*n);
                     w.nodeVertices.emplace_back(v, *n);

@@ -219,75 +219,107 @@ std::uint64_t markReversedPairs(const Loops& loops, const std::vector<std::uint8
     return marked;
 }
 
-// The mesh's polygons with each candidate replaced by its loops (pillows left out); the new
-// numbers of the polygons that came from candidates (ascending) go to fromCandidates.
-void replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidateOf, const std::vector<std::uint32_t>& firstLoop,
-                       const Loops& loops, const std::vector<std::uint8_t>& pillow, std::vector<std::uint32_t>& fromCandidates) {
-    const std::size_t polygons = mesh.polygonCount();
+// Which candidates (positions in the ascending list) lie among the polygons [b, e).
+std::pair<std::size_t, std::size_t> candidatesIn(const std::vector<std::uint32_t>& candidates, std::size_t b, std::size_t e) {
+    const auto lo = std::lower_bound(candidates.begin(), candidates.end(), std::uint32_t(b));
+    const auto hi = std::lower_bound(lo, candidates.end(), std::uint32_t(e));
+    return {std::size_t(lo - candidates.begin()), std::size_t(hi - candidates.begin())};
+}
+
+// The mesh's polygons with each candidate replaced by its loops (pillows left out), and the
+// points no polygon then uses dropped (the order of the rest kept); the new numbers of the
+// polygons that came from candidates (ascending) go to fromCandidates. Returns old -> new point
+// numbers (kNone for dropped points) and leaves room for `spare` more points, so that adding them
+// later does not move the whole array. Polygons between candidates are copied as runs: they are
+// nearly all of them, and only their vertex numbers change.
+std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidates, const std::vector<std::uint32_t>& firstLoop,
+                                             const Loops& loops, const std::vector<std::uint8_t>& pillow, std::size_t spare,
+                                             std::vector<std::uint32_t>& fromCandidates) {
+    const std::size_t polygons = mesh.polygonCount(), points = mesh.points.size();
     const std::size_t chunks = chunkCount(polygons);
     std::vector<std::size_t> polygonCount(chunks, 0), indexCount(chunks, 0);
-    auto forEachOutput = [&](std::size_t b, std::size_t e, auto&& out) {
-        for (std::size_t f = b; f < e; ++f) {
-            const std::uint32_t c = candidateOf[f];
-            if (c == kNone) {
-                out(mesh.indices.data() + mesh.offsets[f], mesh.polygonSize(f), false);
-                continue;
-            }
-            for (std::uint32_t l = firstLoop[c]; l < firstLoop[c + 1]; ++l)
-                if (!pillow[l]) out(loops.loop(l), loops.size(l), true);
+    std::unique_ptr<std::atomic<std::uint8_t>[]> used(new std::atomic<std::uint8_t>[points]);
+    forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t v = b; v < e; ++v) used[v].store(0, std::memory_order_relaxed);
+    });
+    auto use = [&](const std::uint32_t* p, std::size_t n) {
+        for (std::size_t i = 0; i < n; ++i) used[p[i]].store(1, std::memory_order_relaxed);
+    };
+    // Calls run(first, last) for each run of polygons between candidates and loop(l) for each
+    // kept loop of a candidate, in polygon order.
+    auto forEachOutput = [&](std::size_t b, std::size_t e, auto&& run, auto&& loop) {
+        const auto [k0, k1] = candidatesIn(candidates, b, e);
+        std::size_t f = b;
+        for (std::size_t k = k0; k < k1; ++k) {
+            if (candidates[k] > f) run(f, std::size_t(candidates[k]));
+            for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l)
+                if (!pillow[l]) loop(l);
+            f = std::size_t(candidates[k]) + 1;
         }
+        if (e > f) run(f, e);
     };
     forEachChunk(polygons, [&](std::size_t c, std::size_t b, std::size_t e) {
-        forEachOutput(b, e, [&](const std::uint32_t*, std::uint32_t n, bool) { ++polygonCount[c], indexCount[c] += n; });
+        forEachOutput(
+            b, e,
+            [&](std::size_t f0, std::size_t f1) {
+                polygonCount[c] += f1 - f0;
+                indexCount[c] += mesh.offsets[f1] - mesh.offsets[f0];
+                use(mesh.indices.data() + mesh.offsets[f0], mesh.offsets[f1] - mesh.offsets[f0]);
+            },
+            [&](std::uint32_t l) {
+                ++polygonCount[c];
+                indexCount[c] += loops.size(l);
+                use(loops.loop(l), loops.size(l));
+            });
     });
+    // New point numbers, in order.
+    std::vector<std::uint32_t> kept(chunkCount(points), 0);
+    forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
+        for (std::size_t v = b; v < e; ++v) kept[c] += used[v].load(std::memory_order_relaxed);
+    });
+    const std::vector<std::size_t> pointBase = prefixSums(kept);
+    std::vector<std::uint32_t> newId(points, kNone);
+    forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
+        std::size_t next = pointBase[c];
+        for (std::size_t v = b; v < e; ++v)
+            if (used[v].load(std::memory_order_relaxed)) newId[v] = std::uint32_t(next++);
+    });
+    used.reset();
+
     const std::vector<std::size_t> polygonBase = prefixSums(polygonCount), indexBase = prefixSums(indexCount);
-    std::vector<std::uint32_t> offsets(polygonBase.back() + 1, 0), indices(indexBase.back());
+    std::vector<std::uint32_t> offsets(polygonBase.back() + 1), indices(indexBase.back());
+    offsets[0] = 0;
     std::vector<std::vector<std::uint32_t>> fromParts(chunks);
     forEachChunk(polygons, [&](std::size_t c, std::size_t b, std::size_t e) {
         std::size_t f = polygonBase[c], i = indexBase[c];
-        forEachOutput(b, e, [&](const std::uint32_t* p, std::uint32_t n, bool fromCandidate) {
-            if (fromCandidate) fromParts[c].push_back(std::uint32_t(f));
-            std::copy(p, p + n, indices.begin() + std::ptrdiff_t(i));
-            i += n;
-            offsets[++f] = std::uint32_t(i);
-        });
+        forEachOutput(
+            b, e,
+            [&](std::size_t f0, std::size_t f1) {
+                const std::uint32_t from = mesh.offsets[f0], to = mesh.offsets[f1];
+                const std::uint32_t shift = std::uint32_t(i) - from; // (mod 2^32: offsets stay below it)
+                for (std::size_t g = f0 + 1; g <= f1; ++g) offsets[++f] = mesh.offsets[g] + shift;
+                for (std::uint32_t j = from; j < to; ++j) indices[i++] = newId[mesh.indices[j]];
+            },
+            [&](std::uint32_t l) {
+                fromParts[c].push_back(std::uint32_t(f));
+                const std::uint32_t* p = loops.loop(l);
+                for (std::uint32_t j = 0; j < loops.size(l); ++j) indices[i++] = newId[p[j]];
+                offsets[++f] = std::uint32_t(i);
+            });
     });
     fromCandidates.clear();
     for (const auto& p : fromParts) fromCandidates.insert(fromCandidates.end(), p.begin(), p.end());
     mesh.offsets = std::move(offsets);
     mesh.indices = std::move(indices);
-}
-
-// Drops the points no polygon uses, keeping the order of the rest; returns old -> new (kNone
-// for dropped points). Leaves room for `spare` more points, so that adding them later does not
-// move the whole array (that cost more than the rest of the fan split).
-std::vector<std::uint32_t> dropUnusedPoints(Mesh& mesh, std::size_t spare) {
-    const std::size_t n = mesh.points.size();
-    std::unique_ptr<std::atomic<std::uint8_t>[]> used(new std::atomic<std::uint8_t>[n]);
-    forEachChunk(n, [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t v = b; v < e; ++v) used[v].store(0, std::memory_order_relaxed);
-    });
-    forEachChunk(mesh.indices.size(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) used[mesh.indices[i]].store(1, std::memory_order_relaxed);
-    });
-    std::vector<std::uint32_t> kept(chunkCount(n), 0);
-    forEachChunk(n, [&](std::size_t c, std::size_t b, std::size_t e) {
-        for (std::size_t v = b; v < e; ++v) kept[c] += used[v].load(std::memory_order_relaxed);
-    });
-    const std::vector<std::size_t> base = prefixSums(kept);
-    std::vector<std::uint32_t> newId(n, kNone);
-    std::vector<Vec3f> points;
-    points.reserve(base.back() + spare);
-    points.resize(base.back());
-    forEachChunk(n, [&](std::size_t c, std::size_t b, std::size_t e) {
-        std::size_t next = base[c];
+    // (After the old polygons are freed: fresh pages cost as much as the copying.)
+    std::vector<Vec3f> keptPoints;
+    keptPoints.reserve(pointBase.back() + spare);
+    keptPoints.resize(pointBase.back());
+    forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
         for (std::size_t v = b; v < e; ++v)
-            if (used[v].load(std::memory_order_relaxed)) newId[v] = std::uint32_t(next), points[next++] = mesh.points[v];
+            if (newId[v] != kNone) keptPoints[newId[v]] = mesh.points[v];
     });
-    forEachChunk(mesh.indices.size(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) mesh.indices[i] = newId[mesh.indices[i]];
-    });
-    mesh.points = std::move(points);
+    mesh.points = std::move(keptPoints);
     return newId;
 }
 
@@ -301,16 +333,18 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
     // Only polygons through a vertex on a node can change: the attempts below redo just those.
     std::vector<std::uint8_t> onNode(mesh.points.size(), 0);
     for (const auto& [v, node] : atNode) onNode[v] = 1;
-    std::vector<std::uint8_t> touches(mesh.polygonCount(), 0);
-    forEachChunk(mesh.polygonCount(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t f = b; f < e; ++f) {
-            const std::uint32_t* p = mesh.polygon(f);
-            touches[f] = std::any_of(p, p + mesh.polygonSize(f), [&](std::uint32_t v) { return onNode[v] != 0; });
-        }
-    });
-    std::vector<std::uint32_t> candidates, candidateOf(mesh.polygonCount(), kNone);
-    for (std::uint32_t f = 0; f < touches.size(); ++f)
-        if (touches[f]) candidateOf[f] = std::uint32_t(candidates.size()), candidates.push_back(f);
+    std::vector<std::uint32_t> candidates; // ascending
+    {
+        std::vector<std::vector<std::uint32_t>> parts(chunkCount(mesh.polygonCount()));
+        forEachChunk(mesh.polygonCount(), [&](std::size_t c, std::size_t b, std::size_t e) {
+            for (std::size_t f = b; f < e; ++f) {
+                const std::uint32_t* p = mesh.polygon(f);
+                if (std::any_of(p, p + mesh.polygonSize(f), [&](std::uint32_t v) { return onNode[v] != 0; }))
+                    parts[c].push_back(std::uint32_t(f));
+            }
+        });
+        for (const auto& p : parts) candidates.insert(candidates.end(), p.begin(), p.end());
+    }
 
     // The representatives, numbered (for grouping corners by welded vertex).
     std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
@@ -362,13 +396,12 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         std::vector<std::uint8_t> pillow;
         std::uint64_t collapsed = markReversedPairs(loops, isRep, pillow);
         for (std::uint64_t c : collapsedIn) collapsed += c;
-        std::vector<std::uint32_t> fromCandidates;
-        replaceCandidates(mesh, candidateOf, firstLoop, loops, pillow, fromCandidates);
         // A welded vertex where several fans meet gets a copy per further fan (rarely more than
         // two fans): room for those.
         std::size_t weldedNodes = 0;
         for (std::size_t s = 0; s < slots; ++s) weldedNodes += !apart[s];
-        const std::vector<std::uint32_t> newId = dropUnusedPoints(mesh, 2 * weldedNodes);
+        std::vector<std::uint32_t> fromCandidates;
+        const std::vector<std::uint32_t> newId = replaceCandidates(mesh, candidates, firstLoop, loops, pillow, 2 * weldedNodes, fromCandidates);
         stats.weldedVertices = welded;
         stats.collapsedPolygons = collapsed;
         // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
