@@ -329,6 +329,39 @@ TEST_CASE("a raster that would outgrow its memory stops with an error naming the
     CHECK_NOTHROW(DensityRaster(scene, o));
 }
 
+TEST_CASE("an edit that would outgrow its memory stops with an error naming the scene, and the raster is then refused") {
+    initializeOpenVdb();
+    const DensityScene scene(testScene(), "test");
+    RasterOptions o;
+    o.voxelSize = 0.02;
+    const std::uint64_t leaves = DensityRaster(scene, o).stats().leavesEvaluated;
+    // Room for the scene's leaves and a quarter more (each ~2 KiB of values), not for a first
+    // primitive grown to three times its size: the edit stops, saying why.
+    o.memoryLimit = double(leaves) * 2600;
+    std::vector<Primitive> grown = testScene();
+    grown[0].size = grown[0].size * 3.0;
+    const DensityScene big(grown, "test grown");
+    {
+        DensityRaster raster(scene, o);
+        CHECK_THROWS_WITH(raster.update(big), Catch::Contains("test grown") && Catch::Contains("the edit makes the density grid larger") &&
+                                                  Catch::Contains("larger voxel size"));
+        CHECK_THROWS_AS(raster.grid(), std::logic_error);
+        CHECK_THROWS_AS(raster.update(scene), std::logic_error);
+    }
+    // With room for it, the same edit goes through and equals a rebuild; also finer, surface
+    // only, where its 128^3 nodes come in several batches.
+    o.memoryLimit = 0;
+    for (const double h : {0.02, 0.005}) {
+        o.voxelSize = h;
+        o.surfaceOnly = h < 0.01;
+        DensityRaster raster(scene, o);
+        raster.update(big);
+        INFO("h " << h << ": scene leaves " << leaves << ", the edit's " << raster.stats().leavesEvaluated);
+        if (h == 0.02) CHECK(raster.stats().leavesEvaluated > 2 * leaves);
+        requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(big, o).grid()));
+    }
+}
+
 TEST_CASE("cores covering whole VDB nodes become constant tiles, without per-voxel work") {
     initializeOpenVdb();
     // A box core 3 units wide at voxel size 0.01: 300 voxels across, several 128^3 nodes inside.

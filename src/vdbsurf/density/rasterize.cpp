@@ -17,6 +17,7 @@
 #include <deque>
 #include <map>
 #include <sstream>
+#include <stdexcept>
 #include <unordered_map>
 
 namespace vdbsurf {
@@ -103,28 +104,45 @@ struct DensityRaster::Impl {
     FloatGrid::Ptr grid;
     RasterStats stats;
     std::unordered_map<Coord, std::unique_ptr<LeafSums>, CoordHash> sums; // options.keepSums
-    double memoryBudget = 0; // bytes of leaf values a build may add (0: no limit known)
+    double memoryBudget = 0; // bytes of leaf values a build or edit may add (0: no limit known)
+    bool broken = false;     // an edit stopped half way: the grid is neither scene's
+    // Nodes planned and applied at a time (see build).
+    static constexpr std::size_t kNodesPerBatch = 64;
 
     Impl(const DensityScene& s, const RasterOptions& o) : scene(s), options(o) {}
 
     // A build past the memory the machine had free would be killed by the kernel, without a
     // message and after minutes; stop while an error can still be reported. Leaf values are
     // nearly all of a build's memory (tiles are values in their parents' tables).
-    void checkMemory() const {
+    // `pending`: leaves computed and not yet in the tree.
+    void checkMemory(std::uint64_t pending = 0, bool editing = false) const {
         if (memoryBudget <= 0) return;
         // A leaf node holds its values on the heap, apart from the node itself.
         const double perLeaf = double(sizeof(LeafT) + LeafT::SIZE * sizeof(float)) +
                                (options.keepSums ? double(sizeof(LeafSums)) : 0.0);
-        const double used = double(stats.leavesEvaluated) * perLeaf;
+        const std::uint64_t leaves = stats.leavesEvaluated + pending;
+        const double used = double(leaves) * perLeaf;
         if (used <= memoryBudget) return;
         const double gib = double(1 << 30);
         std::ostringstream s;
         s.precision(3);
+        const std::string limit = std::to_string(leaves) + " leaves of values so far, ";
+        if (editing) {
+            s << "the edit makes the density grid larger than the memory it may use at voxel size " << messageNumber(h()) << " ("
+              << limit << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
+              << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started")
+              << "); make the change smaller or rasterize the scene at a larger voxel size";
+            throw Error(scene.describe(), s.str());
+        }
         s << messageNumber(h()) << " makes the density grid of " << scene.describe() << " larger than the memory it may use ("
-          << stats.leavesEvaluated << " leaves of values so far, " << used / gib << " GiB; limit " << memoryBudget / gib
-          << " GiB" << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started") << "); use a larger voxel size"
+          << limit << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
+          << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started") << "); use a larger voxel size"
           << (options.surfaceOnly ? "" : " or --surface-only");
         throw Error("--voxel-size", s.str());
+    }
+
+    void checkUsable() const {
+        if (broken) throw std::logic_error("DensityRaster: used after an edit stopped half way (rebuild it)");
     }
 
     double h() const { return options.voxelSize; }
@@ -456,7 +474,6 @@ struct DensityRaster::Impl {
         // would hold a result for every exact leaf at once (12 GB at 3,000 voxels across) before
         // placing any.
         constexpr std::size_t kLeavesPerNode = (kNode / kLeaf) * (kNode / kLeaf) * (kNode / kLeaf);
-        constexpr std::size_t kNodesPerBatch = 64;
         std::vector<Coord> batchNodes;
         std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
@@ -516,16 +533,28 @@ struct DensityRaster::Impl {
         for (std::uint32_t j : change.added) nodesOf(scene.prepared()[j]);
         std::sort(nodes.begin(), nodes.end());
         nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+        // In batches of nodes, as a build (a node's plan reads and writes that node alone), so that
+        // an edit that grows a primitive far stops with an error instead of holding every new
+        // leaf at once.
+        memoryBudget = memoryBudgetBytes(options.memoryLimit);
+        broken = true; // until the last batch is in: an error leaves the grid between two scenes
+        std::vector<Coord> batchNodes;
         std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
-        runPlans(nodes, plans, results, &change);
         std::uint64_t refilled = 0;
-        for (const NodePlan& p : plans)
-            for (const BlockFill& f : p.fills) {
-                applyFill(f, true);
-                refilled += std::uint64_t(f.size / kLeaf) * (f.size / kLeaf) * (f.size / kLeaf);
-            }
-        for (LeafResult& r : results) apply(r, true);
+        for (std::size_t batch = 0; batch < nodes.size(); batch += kNodesPerBatch) {
+            batchNodes.assign(nodes.begin() + std::ptrdiff_t(batch), nodes.begin() + std::ptrdiff_t(std::min(nodes.size(), batch + kNodesPerBatch)));
+            runPlans(batchNodes, plans, results, &change);
+            checkMemory(std::uint64_t(std::count_if(results.begin(), results.end(), [](const LeafResult& r) { return r.fill == Fill::Exact; })),
+                        true);
+            for (const NodePlan& p : plans)
+                for (const BlockFill& f : p.fills) {
+                    applyFill(f, true);
+                    refilled += std::uint64_t(f.size / kLeaf) * (f.size / kLeaf) * (f.size / kLeaf);
+                }
+            for (LeafResult& r : results) apply(r, true);
+        }
+        broken = false;
         stats.leavesRecomputed = stats.leavesDecided + refilled;
         stats.seconds = since(t0);
     }
@@ -552,11 +581,15 @@ DensityRaster::DensityRaster(const DensityScene& scene, const RasterOptions& opt
 
 DensityRaster::~DensityRaster() = default;
 
-GridBasePtr DensityRaster::grid() const { return mImpl->grid; }
+GridBasePtr DensityRaster::grid() const {
+    mImpl->checkUsable();
+    return mImpl->grid;
+}
 const DensityScene& DensityRaster::scene() const { return mImpl->scene; }
 const RasterStats& DensityRaster::stats() const { return mImpl->stats; }
 
 const RasterStats& DensityRaster::update(const DensityScene& edited) {
+    mImpl->checkUsable();
     Vec3i first, last;
     sceneVoxelRange(edited, mImpl->h(), first, last);
     for (int a = 0; a < 3; ++a)

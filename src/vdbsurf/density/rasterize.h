@@ -29,8 +29,9 @@ struct RasterOptions {
     // Keep each evaluated voxel's fixed-point sum (8 bytes a voxel, as long as the raster lives)
     // so that update() corrects it by the changed primitives alone instead of summing them all.
     bool keepSums = false;
-    // Bytes of leaf values a build may hold before it stops with an Error naming --voxel-size;
-    // 0: 80 % of the memory free when the build starts (past it the kernel would kill the process).
+    // Bytes of leaf values a build may hold before it stops with an Error naming --voxel-size (an
+    // edit: new leaves, naming the scene); 0: 80 % of the memory free when the build or edit
+    // starts (past it the kernel would kill the process).
     double memoryLimit = 0;
     const CancelToken* cancel = nullptr;
 };
@@ -63,6 +64,9 @@ public:
 
     // Makes the grid that of `edited`: recomputes only the leaves reached by the old or new
     // influence of the primitives that differ (reordering or renaming the others changes nothing).
+    // Throws Error naming the scene when the new leaves would pass the memory limit (as a build
+    // does), or Cancelled; the grid is then between the two scenes, and grid() and update() throw
+    // std::logic_error: the raster must be built again.
     const RasterStats& update(const DensityScene& edited);
 
     struct Impl;
