@@ -126,16 +126,16 @@ struct DensityRaster::Impl {
         const double gib = double(1 << 30);
         std::ostringstream s;
         s.precision(3);
-        const std::string limit = std::to_string(leaves) + " leaves of values so far, ";
+        const std::string soFar = std::to_string(leaves) + " leaves of values so far, ";
         if (editing) {
             s << "the edit makes the density grid larger than the memory it may use at voxel size " << messageNumber(h()) << " ("
-              << limit << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
+              << soFar << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
               << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started")
               << "); make the change smaller or rasterize the scene at a larger voxel size";
             throw Error(scene.describe(), s.str());
         }
         s << messageNumber(h()) << " makes the density grid of " << scene.describe() << " larger than the memory it may use ("
-          << limit << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
+          << soFar << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
           << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started") << "); use a larger voxel size"
           << (options.surfaceOnly ? "" : " or --surface-only");
         throw Error("--voxel-size", s.str());
