@@ -287,8 +287,7 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
     used.reset();
 
     const std::vector<std::size_t> polygonBase = prefixSums(polygonCount), indexBase = prefixSums(indexCount);
-    std::vector<std::uint32_t> offsets(polygonBase.back() + 1), indices(indexBase.back());
-    offsets[0] = 0;
+    std::vector<std::uint32_t> offsets(polygonBase.back() + 1, 0), indices(indexBase.back());
     std::vector<std::vector<std::uint32_t>> fromParts(chunks);
     forEachChunk(polygons, [&](std::size_t c, std::size_t b, std::size_t e) {
         std::size_t f = polygonBase[c], i = indexBase[c];
