@@ -57,7 +57,11 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
     const Vec3d u = normalized(cross(w, std::fabs(w.x) < 0.6 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0)));
     const Vec3d v = cross(w, u);
     for (const double bow : {0.1, 0.2, 0.35, 0.5, 0.75}) {
-        const int n = int(std::ceil((len + 2 * bow * mFrame.h) * mSteps / mFrame.h)) + 1;
+        // Steps by the path's greatest speed (at its ends, |d| and the bow's 4·bow·h across), so
+        // no step is h/k long anywhere: counted by its length instead, a 0.5 or 0.75 bow stepped
+        // over a crack h/k wide next to an end and joined the two halves of a ball through it.
+        const double speed = std::sqrt(len * len + 16 * bow * bow * mFrame.h * mFrame.h);
+        const int n = int(std::ceil(speed * mSteps / mFrame.h)) + 1;
         for (int k = 0; k < 8; ++k) {
             const double angle = k * (M_PI / 4);
             const Vec3d dir = u * std::cos(angle) + v * std::sin(angle);
@@ -187,6 +191,11 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     // a sharp feature its last edge to the other side: the feature's crossings sit on those
     // edges, and with none left it vanishes from the mesh (bridging moved the one outside node
     // beside a notch's concave corner into the solid: the mesh cut the corner off by a cell).
+    // A neighbour that moved to its side is not such a node: it stands for a thin part or joins
+    // two nodes of one, and where c's move leaves it alone, bridging joins it again or the lone
+    // joins go back to rest (restoreLoneJoins). Refusing c for it kept a crack hidden at a rim:
+    // a node bridged into one half's wedge beside the crack leaned on the one node that had to
+    // move into the crack.
     auto neighbourOn = [&](const Coord& d, bool side) { // does c's neighbour d have one (not c) on `side`?
         for (int j = 0; j < 6; ++j) {
             const Coord e = d + axisStep(j / 2, j % 2 ? 1 : -1);
@@ -209,7 +218,8 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         if (!validNode(c + d)) continue;
         bool nbInside = false;
         at(d, nbInside);
-        const bool keepsCompany = nbInside == inside ? neighbourOn(d, nbInside)
+        const bool movedToSide = nodes.offsets.isValueOn(c + d) && !nodes.onSurface.isValueOn(c + d);
+        const bool keepsCompany = nbInside == inside ? movedToSide || neighbourOn(d, nbInside)
                                                      : !nodes.onSurface.isValueOn(c + d) || neighbourOn(d, inside);
         if (!keepsCompany) {
             effect.keeps = false;

@@ -546,6 +546,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
 
     const std::vector<std::uint8_t> insideNeighbours = sampleNeighbours(all);
     std::vector<Vec3i> flipped;
+    // Where the thin search had put a flipped node (into a crack, off a thin part): a flip that is
+    // undone goes back there, not to rest, where it is on the other side (at a crack's rim, a node
+    // of one half alone beside the crack: a bubble of 6 vertices).
+    std::vector<std::pair<Coord, openvdb::Vec3f>> movedBeforeFlip;
     std::vector<Proposal> placedFirst; // in node order
     for (std::size_t i = 0; i < all.size(); ++i) {
         const Proposal& p = all[i];
@@ -559,6 +563,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // is, it would change nothing. It changes side instead (the feature's tip is a thin part
         // of the other side) and is joined to that side by bridging below.
         const bool flip = otherSide == 0;
+        openvdb::Vec3f before;
+        if (flip && offsets.probeValue(p.node, before)) movedBeforeFlip.emplace_back(p.node, before);
         place(p, flip ? !p.inside : p.inside);
         placedFirst.push_back(p);
         if (flip) flipped.emplace_back(p.node.x(), p.node.y(), p.node.z());
@@ -572,12 +578,15 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped, nullptr, &out.changedNodes);
         // A flipped node is a join too: a tip of the other side that bridging could not join to it
         // is a bubble (at a crack's rim: 4 or 8 triangles beside the crack).
+        std::vector<std::pair<Coord, openvdb::Vec3f>> backToThinSearch;
         for (const Vec3i& r : restoreLoneJoins(field, frame, iso, out.changedNodes, deformation)) {
             const auto f = std::find(flipped.begin(), flipped.end(), r);
             if (f == flipped.end()) {
                 --out.bridged;
                 continue;
             }
+            for (const auto& m : movedBeforeFlip)
+                if (m.first == Coord(r.x, r.y, r.z)) backToThinSearch.push_back(m);
             const auto placed = std::find_if(placedFirst.begin(), placedFirst.end(), [&](const Proposal& p) {
                 return p.node == Coord(r.x, r.y, r.z);
             });
@@ -591,6 +600,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         offsets.clear();
         onSurface.clear();
         insideOnSurface.clear();
+        for (const auto& m : backToThinSearch) offsets.setValue(m.first, m.second);
     }
 
     // Second round, along edges. One node a cell leaves gaps where an edge runs between nodes

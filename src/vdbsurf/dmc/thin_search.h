@@ -67,7 +67,8 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
 // bridged into the half beside it after its six neighbours had moved into the crack: 8 triangles
 // alone beside the crack). Each inside piece (6-connected, as marching cubes joins inside nodes)
 // made only of nodes among `joins` that moved goes back to rest (also off a sharp feature, for the
-// nodes the sharp pass flipped); the first phase's moves are not joins (a small part alone in its
+// nodes the sharp pass flipped; the sharp pass then puts one the thin search had moved back where
+// the thin search put it); the first phase's moves are not joins (a small part alone in its
 // cells is what they are for). Decided on one state for every piece, then applied; returns the
 // nodes restored.
 std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& joins,
