@@ -856,7 +856,7 @@ TEST_CASE("a bowed path never steps over a crack h/k wide, even where the crack 
     const LatticeFrame frame{{-1.05, -1.05, -1.05}, kH};
     auto joinsAcross = [&](const Vec3d& n, int steps, const Vec3d& from, const Vec3d& to) {
         const double width = kH / steps;
-        // Solid everywhere but a crack `width` wide through the origin, `from` a hair beside it.
+        // Solid everywhere but a crack `width` wide across n, its near face a hair beyond `from`.
         const Vec3d shift = from + n * (width / 2 + 1e-4 * kH);
         const ExpressionField field(num(width / 2) + "-abs(" + dotWith(n, shift) + ")", kBox);
         const Lattice lattice = buildLattice(field, frame, latticeCellRange(field, frame), 0.0, CellTest::CornerSigns);
