@@ -124,20 +124,18 @@ struct DensityRaster::Impl {
         const double used = double(leaves) * perLeaf;
         if (used <= memoryBudget) return;
         const double gib = double(1 << 30);
+        // What was asked and what may be used, the same for a build and an edit.
+        std::ostringstream usage;
+        usage.precision(3);
+        usage << "(" << leaves << " leaves of values so far, " << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
+              << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started") << ")";
+        if (editing)
+            throw Error(scene.describe(), "the edit makes the density grid larger than the memory it may use at voxel size " +
+                                              messageNumber(h()) + " " + usage.str() +
+                                              "; make the change smaller or rasterize the scene at a larger voxel size");
         std::ostringstream s;
-        s.precision(3);
-        const std::string soFar = std::to_string(leaves) + " leaves of values so far, ";
-        if (editing) {
-            s << "the edit makes the density grid larger than the memory it may use at voxel size " << messageNumber(h()) << " ("
-              << soFar << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
-              << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started")
-              << "); make the change smaller or rasterize the scene at a larger voxel size";
-            throw Error(scene.describe(), s.str());
-        }
-        s << messageNumber(h()) << " makes the density grid of " << scene.describe() << " larger than the memory it may use ("
-          << soFar << used / gib << " GiB; limit " << memoryBudget / gib << " GiB"
-          << (options.memoryLimit > 0 ? "" : ", 80 % of the memory free when it started") << "); use a larger voxel size"
-          << (options.surfaceOnly ? "" : " or --surface-only");
+        s << messageNumber(h()) << " makes the density grid of " << scene.describe() << " larger than the memory it may use "
+          << usage.str() << "; use a larger voxel size" << (options.surfaceOnly ? "" : " or --surface-only");
         throw Error("--voxel-size", s.str());
     }
 
