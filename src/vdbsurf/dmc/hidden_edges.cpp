@@ -23,6 +23,10 @@ using openvdb::Coord;
 namespace {
 
 constexpr int kMaxRounds = 32;
+// Places beside an edge an end tries, nearest the part first (each costs a move's checks), on a
+// grid of at most 8^3 over its Ω (the search's h/k step, capped: a last resort, not the search).
+constexpr std::size_t kBesideTries = 8;
+constexpr int kBesideStepsMax = 8;
 
 // The segments examined: lattice edges (kinds 0-2, along x, y, z) and face diagonals (kinds
 // 3-8), named by the end from which the step's first non-zero component is positive.
@@ -70,7 +74,15 @@ struct Move {
 class EdgeExaminer {
 public:
     EdgeExaminer(const Field& field, const Lattice& lattice, double iso, int steps)
-        : mRuns(field, lattice, iso, steps), mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()) {}
+        : mRuns(field, lattice, iso, steps), mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()) {
+        const int m = std::min(steps, kBesideStepsMax);
+        const double step = mFrame.h / m;
+        for (int z = 0; z < m; ++z)
+            for (int y = 0; y < m; ++y)
+                for (int x = 0; x < m; ++x)
+                    mBesideOffsets.emplace_back(Vec3d(-mFrame.h / 2 + (x + 0.5) * step, -mFrame.h / 2 + (y + 0.5) * step,
+                                                      -mFrame.h / 2 + (z + 0.5) * step));
+    }
 
     bool validNode(const Coord& c) const { return mRuns.validNode(c); }
 
@@ -110,6 +122,14 @@ public:
         // edge (a part the edge hides), at the sample nearest the run's middle that its Ω holds —
         // if that leaves fewer hidden runs on its six edges than before and none more on any one,
         // and it is not the only node of a part itself.
+        // A diagonal's own runs count too (the axis edges are among the six).
+        const std::size_t own = e.diagonal() ? runs.size() - 1 : 0;
+        auto accepts = [&](const Coord& c, bool inside, const Vec3f& off, const Vec3d& far) {
+            const Vec3d to = world(c) + Vec3d(off);
+            const std::size_t ownAfter = e.diagonal() ? mRuns.hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
+            return ownAfter <= own && improves(c, inside, to, own - ownAfter, nodes, examined, evaluated);
+        };
+        bool reaches[2] = {false, false}; // does the end's Ω hold the run along the edge?
         for (const bool fromA : {true, false}) {
             if (fromA ? movedA : movedB) continue;
             const EdgeRuns::Run& run = runs[fromA ? 1 : runs.size() - 2];
@@ -124,15 +144,34 @@ public:
             for (int i : order) {
                 const std::optional<Vec3f> placed = offsetInOmega(pa + (pb - pa) * (double(i) / n) - world(c), mFrame.h);
                 if (!placed) continue;
-                const Vec3f off = *placed;
+                reaches[fromA ? 0 : 1] = true;
+                ++evaluated;
+                if (!isOtherSide(inside, mField.value(world(c) + Vec3d(*placed)), mIso, mSide)) continue;
+                if (accepts(c, inside, *placed, fromA ? pb : pa)) return Move{c, *placed, e};
+            }
+        }
+        // Only one end's Ω holds the part along the edge, and that end may not go there (where a
+        // crack meets the outside: it would leave the node across the crack alone on its side, tied
+        // to its half by face diagonals only, or make a face hide the rim). The other end may go
+        // into the part beside the edge, within its Ω: to the samples of the other side there
+        // nearest the part's middle on the edge, nearest first.
+        for (const bool fromA : {true, false}) {
+            if ((fromA ? movedA : movedB) || reaches[fromA ? 0 : 1]) continue;
+            const EdgeRuns::Run& run = runs[fromA ? 1 : runs.size() - 2];
+            if (run.first == 0 || run.last == n) continue;
+            const Coord c = fromA ? a : b;
+            const bool inside = fromA ? insideA : insideB;
+            const Vec3d middle = pa + (pb - pa) * (0.5 * (run.first + run.last) / n);
+            std::vector<std::pair<double, Vec3f>> nearest;
+            for (const Vec3f& off : mBesideOffsets) nearest.emplace_back(length(world(c) + Vec3d(off) - middle), off);
+            std::stable_sort(nearest.begin(), nearest.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+            std::size_t tried = 0;
+            for (const auto& [distance, off] : nearest) {
+                if (tried == kBesideTries) break;
                 ++evaluated;
                 if (!isOtherSide(inside, mField.value(world(c) + Vec3d(off)), mIso, mSide)) continue;
-                // A diagonal's own runs count too (the axis edges are among the six).
-                const std::size_t own = e.diagonal() ? runs.size() - 1 : 0;
-                const Vec3d to = world(c) + Vec3d(off), far = fromA ? pb : pa;
-                const std::size_t ownAfter = e.diagonal() ? mRuns.hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
-                if (ownAfter > own || !improves(c, inside, to, own - ownAfter, nodes, examined, evaluated)) continue;
-                return Move{c, off, e};
+                ++tried;
+                if (accepts(c, inside, off, fromA ? pb : pa)) return Move{c, off, e};
             }
         }
         return std::nullopt;
@@ -154,6 +193,7 @@ private:
     const LatticeFrame& mFrame;
     double mIso;
     Inside mSide;
+    std::vector<Vec3f> mBesideOffsets; // a cubic grid over Ω where an end may go beside its edge
 };
 
 // Every edge of the active cells, examined leaf by leaf with the leaf's node values.
@@ -204,10 +244,12 @@ std::vector<Move> examineActiveCells(const EdgeExaminer& examiner, const Field& 
 }
 
 // Examined again after nodes moved: `edges` (deferred ones), and around each of `nodes` every
-// edge at it and both diagonals of every face it is a corner of.
+// edge at it, both diagonals of every face it is a corner of, and every edge at a node two axis
+// steps from it or nearer (its move changes which neighbours such a node leaves alone: a move
+// refused for that may now be allowed).
 std::vector<Move> examineAround(const EdgeExaminer& examiner, const std::vector<Coord>& nodes, std::vector<Edge> edges,
                                 const LatticeDeformation& deformation, HiddenEdgeStats& stats) {
-    for (const Coord& n : nodes)
+    for (const Coord& n : nodes) {
         for (int u = 0; u < 3; ++u)
             for (int su = -1; su <= 1; su += 2) {
                 const Coord nu = neighbour(n, u, su);
@@ -218,6 +260,7 @@ std::vector<Move> examineAround(const EdgeExaminer& examiner, const std::vector<
                         edges.push_back(segment(nu, neighbour(n, v, sv)));
                     }
             }
+    }
     edges.erase(std::remove_if(edges.begin(), edges.end(),
                                [&](const Edge& e) {
                                    return !examiner.validNode(e.node) || !examiner.validNode(e.other()) ||

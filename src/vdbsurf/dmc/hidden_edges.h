@@ -5,7 +5,9 @@
 // corners on both sides is not "hidden". Each such edge is sampled at steps shorter than h/k (so
 // a part at least h/k wide is found, as in Ω), and one of its ends that has not moved goes to the
 // middle of the crossing run, where that lies in its own Ω (an edge whose ends a bent path joins
-// is left alone: the run is the other side's surface bulging across it; see edge_runs.h). The moves are then bridged like the
+// is left alone: the run is the other side's surface bulging across it; see edge_runs.h); where
+// the one end whose Ω holds the run may not go there, the other end goes into the part beside the
+// edge, within its own Ω (a crack near its rim). The moves are then bridged like the
 // first phase's, and the edges around every node that moved are examined again, until none hides
 // a part. Proposals are made in parallel from one state and applied in node order, so the result
 // does not depend on thread order.
