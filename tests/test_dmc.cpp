@@ -836,6 +836,24 @@ TEST_CASE("where the crack meets the outside, the node across it from one that m
     }
 }
 
+TEST_CASE("a node goes into a gap that crosses only a corner of its Ω") {
+    // A gap 0.25 H wide through a level-set ball (voxel H/5): by the rim, the one node whose Ω
+    // holds the gap along the edge across it may not move (a node of its half at the rim leans on
+    // it alone), and the gap crosses only a corner of the other node's Ω, beyond every point of a
+    // grid of steps H/k centred in Ω; places beside the edge reach Ω's borders.
+    std::mt19937 rng(7);
+    Vec3d n, c;
+    for (int t = 0; t <= 51; ++t) {
+        n = randomUnit(rng);
+        c = randomCentre(rng);
+    }
+    auto gap = [&](const Vec3d& p) { return std::max(length(p - c) - 0.8, 0.125 * kH - std::fabs(dot(n, p - c))); };
+    const GridField field(test::makeLevelSetFromDistance(gap, Box3{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}}, kH / 5), "gap");
+    MeshReport report;
+    const Mesh dmc = dmcAtH(field, report);
+    CHECK(countComponents(dmc) == 2);
+}
+
 namespace {
 // The same formula, but telling the thin search that bounds cost more than samples.
 class WithoutSubdivision final : public Field {

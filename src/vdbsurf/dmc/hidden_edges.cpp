@@ -75,13 +75,15 @@ class EdgeExaminer {
 public:
     EdgeExaminer(const Field& field, const Lattice& lattice, double iso, int steps)
         : mRuns(field, lattice, iso, steps), mField(field), mFrame(lattice.frame), mIso(iso), mSide(field.inside()) {
+        // From border to border of Ω: a part may cross only a corner of it.
         const int m = std::min(steps, kBesideStepsMax);
         const double step = mFrame.h / m;
-        for (int z = 0; z < m; ++z)
-            for (int y = 0; y < m; ++y)
-                for (int x = 0; x < m; ++x)
-                    mBesideOffsets.emplace_back(Vec3d(-mFrame.h / 2 + (x + 0.5) * step, -mFrame.h / 2 + (y + 0.5) * step,
-                                                      -mFrame.h / 2 + (z + 0.5) * step));
+        for (int z = 0; z <= m; ++z)
+            for (int y = 0; y <= m; ++y)
+                for (int x = 0; x <= m; ++x)
+                    if (const auto off = offsetInOmega(Vec3d(-mFrame.h / 2 + x * step, -mFrame.h / 2 + y * step, -mFrame.h / 2 + z * step),
+                                                       mFrame.h))
+                        mBesideOffsets.push_back(*off);
     }
 
     bool validNode(const Coord& c) const { return mRuns.validNode(c); }
