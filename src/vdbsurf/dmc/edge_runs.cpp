@@ -4,6 +4,7 @@
 #include "vdbsurf/lattice/lattice.h"
 
 #include <cmath>
+#include <functional>
 #include <queue>
 #include <unordered_set>
 #include <utility>
@@ -196,23 +197,32 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     // joins go back to rest (restoreLoneJoins). Refusing c for it kept a crack hidden at a rim:
     // a node bridged into one half's wedge beside the crack leaned on the one node that had to
     // move into the crack.
-    auto neighbourOn = [&](const Coord& d, bool side) { // does c's neighbour d have one (not c) on `side`?
+    auto sideAt = [&](const Coord& e) { // the side of the node at offset e from c
+        bool eInside = false;
+        if (std::abs(e.x()) <= 1 && std::abs(e.y()) <= 1 && std::abs(e.z()) <= 1) {
+            at(e, eInside);
+        } else {
+            double v = 0;
+            const Coord m = c + e;
+            mField.sampleNodes(mFrame, {m.x(), m.y(), m.z()}, {1, 1, 1}, nullptr, &v);
+            eInside = nodes.inside(m, isInside(v, mIso, mSide));
+        }
+        return eInside;
+    };
+    // Does the node at offset d have a neighbour on `side` other than c and `besides`, and, when
+    // `deeper`, one that has such a neighbour itself (other than d and c)? Two nodes that only
+    // have each other are cut off as surely as one alone (two nodes of a half beside a crack at
+    // its rim, whose other links to their half had moved into the crack: a 10-vertex bubble).
+    std::function<bool(const Coord&, bool, const Coord&, bool)> companyOn = [&](const Coord& d, bool side, const Coord& besides,
+                                                                             bool deeper) {
         for (int j = 0; j < 6; ++j) {
             const Coord e = d + axisStep(j / 2, j % 2 ? 1 : -1);
-            if (e == Coord(0, 0, 0) || !validNode(c + e)) continue;
-            bool eInside = false;
-            if (std::abs(e.x()) <= 1 && std::abs(e.y()) <= 1 && std::abs(e.z()) <= 1) {
-                at(e, eInside);
-            } else {
-                double v = 0;
-                const Coord m = c + e;
-                mField.sampleNodes(mFrame, {m.x(), m.y(), m.z()}, {1, 1, 1}, nullptr, &v);
-                eInside = nodes.inside(m, isInside(v, mIso, mSide));
-            }
-            if (eInside == side) return true;
+            if (e == Coord(0, 0, 0) || e == besides || !validNode(c + e) || sideAt(e) != side) continue;
+            if (!deeper || companyOn(e, side, d, false)) return true;
         }
         return false;
     };
+    auto neighbourOn = [&](const Coord& d, bool side) { return companyOn(d, side, Coord(0, 0, 0), true); };
     for (int k = 0; k < 6; ++k) {
         const Coord d = axisStep(k / 2, k % 2 ? 1 : -1);
         if (!validNode(c + d)) continue;
