@@ -246,12 +246,10 @@ std::vector<Move> examineActiveCells(const EdgeExaminer& examiner, const Field& 
 }
 
 // Examined again after nodes moved: `edges` (deferred ones), and around each of `nodes` every
-// edge at it, both diagonals of every face it is a corner of, and every edge at a node two axis
-// steps from it or nearer (its move changes which neighbours such a node leaves alone: a move
-// refused for that may now be allowed).
+// edge at it and both diagonals of every face it is a corner of.
 std::vector<Move> examineAround(const EdgeExaminer& examiner, const std::vector<Coord>& nodes, std::vector<Edge> edges,
                                 const LatticeDeformation& deformation, HiddenEdgeStats& stats) {
-    for (const Coord& n : nodes) {
+    for (const Coord& n : nodes)
         for (int u = 0; u < 3; ++u)
             for (int su = -1; su <= 1; su += 2) {
                 const Coord nu = neighbour(n, u, su);
@@ -262,7 +260,6 @@ std::vector<Move> examineAround(const EdgeExaminer& examiner, const std::vector<
                         edges.push_back(segment(nu, neighbour(n, v, sv)));
                     }
             }
-    }
     edges.erase(std::remove_if(edges.begin(), edges.end(),
                                [&](const Edge& e) {
                                    return !examiner.validNode(e.node) || !examiner.validNode(e.other()) ||
