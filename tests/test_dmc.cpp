@@ -874,6 +874,25 @@ TEST_CASE("a node goes into a gap that crosses only a corner of its Ω") {
     CHECK(countComponents(dmc) == 2);
 }
 
+TEST_CASE("a node bridged to a node on the surface, and to nothing else, goes back to rest") {
+    // A gap one cell wide through a level-set ball (voxel H/5): the sharp pass flips a node onto
+    // the rim edge where the gap meets the outside, and bridging from it moves a node into the
+    // half's rim wedge that touches the rest of the half only through that node. The crossings
+    // on the flipped node's edges sit on it, so the bridged node came out as a 6-vertex bubble.
+    std::mt19937 rng(21);
+    Vec3d n, c;
+    for (int t = 0; t <= 52; ++t) {
+        n = randomUnit(rng);
+        c = randomCentre(rng);
+    }
+    auto gap = [&](const Vec3d& p) { return std::max(length(p - c) - 0.8, 0.5 * kH - std::fabs(dot(n, p - c))); };
+    const GridField field(test::makeLevelSetFromDistance(gap, Box3{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}}, kH / 5), "gap");
+    MeshReport report;
+    const Mesh dmc = dmcAtH(field, report);
+    CHECK(report.nodesFlipped > 0);
+    CHECK(countComponents(dmc) == 2);
+}
+
 namespace {
 // The same formula, but telling the thin search that bounds cost more than samples.
 class WithoutSubdivision final : public Field {

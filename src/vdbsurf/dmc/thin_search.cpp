@@ -256,6 +256,29 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
         seen.swap(merged);
         if (!anchored) restore.insert(restore.end(), piece.begin(), piece.end());
     }
+    // A join off the surface whose one inside neighbour lies on it, and has another inside
+    // neighbour off the surface: the crossings on such a node's edges sit on it, so the join meets
+    // the rest at a point only, and gets a fan of its own there (a node bridged beside a node
+    // flipped onto a crack's rim edge, across it from the half's nodes: a 6-vertex bubble). Joins
+    // behind a cube's corner node lean on it and on an edge node at once, and stay.
+    auto insideOffSurface = [&](const Coord& c) { return !nodes.onSurface.isValueOn(c) && insideNow(c); };
+    for (const Coord& x : joins) {
+        if (!isJoin(x) || !insideOffSurface(x)) continue;
+        std::vector<Coord> insideNeighbours;
+        for (int k = 0; k < 6; ++k)
+            if (insideNow(x + axisStep(k / 2, k % 2 ? 1 : -1))) insideNeighbours.push_back(x + axisStep(k / 2, k % 2 ? 1 : -1));
+        if (insideNeighbours.size() != 1 || !nodes.onSurface.isValueOn(insideNeighbours[0])) continue;
+        const Coord f = insideNeighbours[0];
+        for (int k = 0; k < 6; ++k) {
+            const Coord g = f + axisStep(k / 2, k % 2 ? 1 : -1);
+            if (g != x && insideOffSurface(g)) {
+                restore.push_back(x);
+                break;
+            }
+        }
+    }
+    std::sort(restore.begin(), restore.end());
+    restore.erase(std::unique(restore.begin(), restore.end()), restore.end());
     openvdb::tree::ValueAccessor<OffsetTree> acc(*deformation.offsets);
     openvdb::tree::ValueAccessor<NodeMaskTree> onSurface(*deformation.onSurface), insideOnSurface(*deformation.insideOnSurface);
     std::vector<Vec3i> restored;

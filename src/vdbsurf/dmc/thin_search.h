@@ -69,8 +69,9 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
 // made only of nodes among `joins` that moved goes back to rest (also off a sharp feature, for the
 // nodes the sharp pass flipped; the sharp pass then puts one the thin search had moved back where
 // the thin search put it); the first phase's moves are not joins (a small part alone in its
-// cells is what they are for). Decided on one state for every piece, then applied; returns the
-// nodes restored.
+// cells is what they are for). So does a join whose one inside neighbour is a node on the surface
+// that has other inside neighbours: it meets them at that node's point only, a bubble of its own.
+// Decided on one state for every piece, then applied; returns the nodes restored.
 std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& joins,
                                     LatticeDeformation& deformation);
 
