@@ -167,6 +167,17 @@ int randomShellsApart(unsigned seed, double width, int count) {
     });
 }
 
+// A ball of radius 0.8 around c cut in two by a crack `width` wide across n through c.
+std::string crackFormula(const Vec3d& n, const Vec3d& c, double width) {
+    return "max(sqrt(" + radius2(c) + ")-0.8, " + num(width / 2) + "-abs(" + dotWith(n, c) + "))";
+}
+
+// The same shape as a level-set grid of voxel `voxel`.
+GridBasePtr crackLevelSet(const Vec3d& n, const Vec3d& c, double width, double voxel) {
+    auto gap = [&](const Vec3d& p) { return std::max(length(p - c) - 0.8, width / 2 - std::fabs(dot(n, p - c))); };
+    return test::makeLevelSetFromDistance(gap, Box3{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}}, voxel);
+}
+
 // Of `count` balls cut in two by a crack `width` wide at a random orientation through a random
 // point of the centre cell, how many come out as two pieces.
 int randomCracksApart(unsigned seed, double width, int count, bool allMust = true) {
@@ -174,9 +185,20 @@ int randomCracksApart(unsigned seed, double width, int count, bool allMust = tru
         seed, count, 2,
         [&](std::mt19937& rng) {
             const Vec3d n = randomUnit(rng), c = randomCentre(rng);
-            return "max(sqrt(" + radius2(c) + ")-0.8, " + num(width / 2) + "-abs(" + dotWith(n, c) + "))";
+            return crackFormula(n, c, width);
         },
         allMust);
+}
+
+// The crack normal and centre that randomCracksApart draws for trial `trial` from `seed`.
+std::pair<Vec3d, Vec3d> randomCrackAt(unsigned seed, int trial) {
+    std::mt19937 rng(seed);
+    Vec3d n, c;
+    for (int t = 0; t <= trial; ++t) {
+        n = randomUnit(rng);
+        c = randomCentre(rng);
+    }
+    return {n, c};
 }
 
 } // namespace
@@ -786,8 +808,7 @@ TEST_CASE("a gap 0.3 H wide through a level-set ball leaves two halves and no bu
     // a neighbour of its side with no neighbour of its own side).
     const Vec3d n(0.33696394958805831, 0.5789636504922826, 0.7424664221947459);
     const Vec3d c(0.010181175227901004, 0.03974122597511974, -0.0091879030278651935);
-    auto gap = [&](const Vec3d& p) { return std::max(length(p - c) - 0.8, 0.015 - std::fabs(dot(n, p - c))); };
-    const GridField field(test::makeLevelSetFromDistance(gap, Box3{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}}, 0.02), "gap");
+    const GridField field(crackLevelSet(n, c, 0.3 * kH, 0.02), "gap");
     MeshReport report;
     const Mesh dmc = dmcAtH(field, report);
     CHECK(countComponents(dmc) == 2);
@@ -821,14 +842,8 @@ TEST_CASE("where the crack meets the outside, the node across it from one that m
     };
     for (const Case& k : {Case{7, 0.2, 54}, Case{7, 0.3, 55}, Case{11, 0.2, 27}, Case{11, 0.2, 47}, Case{21, 0.3, 23},
                           Case{31, 0.2, 28}, Case{41, 0.2, 8}, Case{41, 0.2, 38}, Case{51, 0.2, 9}, Case{51, 0.3, 45}}) {
-        std::mt19937 rng(k.seed);
-        Vec3d n, c;
-        for (int t = 0; t <= k.trial; ++t) {
-            n = randomUnit(rng);
-            c = randomCentre(rng);
-        }
-        const std::string f =
-            "max(sqrt(" + radius2(c) + ")-0.8, " + num(k.width * kH / 2) + "-abs(" + dotWith(n, c) + "))";
+        const auto [n, c] = randomCrackAt(k.seed, k.trial);
+        const std::string f = crackFormula(n, c, k.width * kH);
         INFO("seed " << k.seed << ", width " << k.width << " H, trial " << k.trial << ": " << f);
         const Mesh m = meshFormula(f, kBox, kH);
         requireClosed(m);
@@ -842,13 +857,8 @@ TEST_CASE("no move cuts off two nodes that only have each other") {
     // they were cut off, a 10-vertex bubble beside the crack (trial t of randomCracksApart's
     // generator).
     for (const auto& [seed, trial] : {std::pair<unsigned, int>{7, 24}, std::pair<unsigned, int>{41, 53}}) {
-        std::mt19937 rng(seed);
-        Vec3d n, c;
-        for (int t = 0; t <= trial; ++t) {
-            n = randomUnit(rng);
-            c = randomCentre(rng);
-        }
-        const std::string f = "max(sqrt(" + radius2(c) + ")-0.8, " + num(0.15 * kH) + "-abs(" + dotWith(n, c) + "))";
+        const auto [n, c] = randomCrackAt(seed, trial);
+        const std::string f = crackFormula(n, c, 0.3 * kH);
         INFO("seed " << seed << ", trial " << trial << ": " << f);
         const Mesh m = meshFormula(f, kBox, kH);
         requireClosed(m);
@@ -861,14 +871,8 @@ TEST_CASE("a node goes into a gap that crosses only a corner of its Ω") {
     // holds the gap along the edge across it may not move (a node of its half at the rim leans on
     // it alone), and the gap crosses only a corner of the other node's Ω, beyond every point of a
     // grid of steps H/k centred in Ω; places beside the edge reach Ω's borders.
-    std::mt19937 rng(7);
-    Vec3d n, c;
-    for (int t = 0; t <= 51; ++t) {
-        n = randomUnit(rng);
-        c = randomCentre(rng);
-    }
-    auto gap = [&](const Vec3d& p) { return std::max(length(p - c) - 0.8, 0.125 * kH - std::fabs(dot(n, p - c))); };
-    const GridField field(test::makeLevelSetFromDistance(gap, Box3{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}}, kH / 5), "gap");
+    const auto [n, c] = randomCrackAt(7, 51);
+    const GridField field(crackLevelSet(n, c, 0.25 * kH, kH / 5), "gap");
     MeshReport report;
     const Mesh dmc = dmcAtH(field, report);
     CHECK(countComponents(dmc) == 2);
@@ -879,14 +883,8 @@ TEST_CASE("a node bridged to a node on the surface, and to nothing else, goes ba
     // the rim edge where the gap meets the outside, and bridging from it moves a node into the
     // half's rim wedge that touches the rest of the half only through that node. The crossings
     // on the flipped node's edges sit on it, so the bridged node came out as a 6-vertex bubble.
-    std::mt19937 rng(21);
-    Vec3d n, c;
-    for (int t = 0; t <= 52; ++t) {
-        n = randomUnit(rng);
-        c = randomCentre(rng);
-    }
-    auto gap = [&](const Vec3d& p) { return std::max(length(p - c) - 0.8, 0.5 * kH - std::fabs(dot(n, p - c))); };
-    const GridField field(test::makeLevelSetFromDistance(gap, Box3{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}}, kH / 5), "gap");
+    const auto [n, c] = randomCrackAt(21, 52);
+    const GridField field(crackLevelSet(n, c, 1.0 * kH, kH / 5), "gap");
     MeshReport report;
     const Mesh dmc = dmcAtH(field, report);
     CHECK(report.nodesFlipped > 0);
