@@ -265,8 +265,10 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
     for (const Coord& x : joins) {
         if (!isJoin(x) || !insideOffSurface(x)) continue;
         std::vector<Coord> insideNeighbours;
-        for (int k = 0; k < 6; ++k)
-            if (insideNow(x + axisStep(k / 2, k % 2 ? 1 : -1))) insideNeighbours.push_back(x + axisStep(k / 2, k % 2 ? 1 : -1));
+        for (int k = 0; k < 6; ++k) {
+            const Coord nb = x + axisStep(k / 2, k % 2 ? 1 : -1);
+            if (insideNow(nb)) insideNeighbours.push_back(nb);
+        }
         if (insideNeighbours.size() != 1 || !nodes.onSurface.isValueOn(insideNeighbours[0])) continue;
         const Coord f = insideNeighbours[0];
         for (int k = 0; k < 6; ++k) {
