@@ -201,6 +201,24 @@ std::pair<Vec3d, Vec3d> randomCrackAt(unsigned seed, int trial) {
     return {n, c};
 }
 
+// Checks that trial `trial`'s crack from `seed`, `width` wide, meshed from its formula at spacing
+// kH, comes out closed and in two pieces.
+void checkRandomCrackApart(unsigned seed, int trial, double width) {
+    const auto [n, c] = randomCrackAt(seed, trial);
+    const std::string f = crackFormula(n, c, width);
+    INFO("seed " << seed << ", width " << width / kH << " H, trial " << trial << ": " << f);
+    const Mesh m = meshFormula(f, kBox, kH);
+    requireClosed(m);
+    CHECK(countComponents(m) == 2);
+}
+
+// The same crack as a level-set grid of voxel H/5, meshed by DMC at spacing kH (checked closed).
+Mesh randomCrackLevelSetAtH(unsigned seed, int trial, double width, MeshReport& report) {
+    const auto [n, c] = randomCrackAt(seed, trial);
+    const GridField field(crackLevelSet(n, c, width, kH / 5), "gap");
+    return dmcAtH(field, report);
+}
+
 } // namespace
 
 TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide are kept, closed, in one piece") {
@@ -841,14 +859,8 @@ TEST_CASE("where the crack meets the outside, the node across it from one that m
         int trial;
     };
     for (const Case& k : {Case{7, 0.2, 54}, Case{7, 0.3, 55}, Case{11, 0.2, 27}, Case{11, 0.2, 47}, Case{21, 0.3, 23},
-                          Case{31, 0.2, 28}, Case{41, 0.2, 8}, Case{41, 0.2, 38}, Case{51, 0.2, 9}, Case{51, 0.3, 45}}) {
-        const auto [n, c] = randomCrackAt(k.seed, k.trial);
-        const std::string f = crackFormula(n, c, k.width * kH);
-        INFO("seed " << k.seed << ", width " << k.width << " H, trial " << k.trial << ": " << f);
-        const Mesh m = meshFormula(f, kBox, kH);
-        requireClosed(m);
-        CHECK(countComponents(m) == 2);
-    }
+                          Case{31, 0.2, 28}, Case{41, 0.2, 8}, Case{41, 0.2, 38}, Case{51, 0.2, 9}, Case{51, 0.3, 45}})
+        checkRandomCrackApart(k.seed, k.trial, k.width * kH);
 }
 
 TEST_CASE("no move cuts off two nodes that only have each other") {
@@ -856,14 +868,8 @@ TEST_CASE("no move cuts off two nodes that only have each other") {
     // into the crack one by one: each move left the two with each other for company, and together
     // they were cut off, a 10-vertex bubble beside the crack (trial t of randomCracksApart's
     // generator).
-    for (const auto& [seed, trial] : {std::pair<unsigned, int>{7, 24}, std::pair<unsigned, int>{41, 53}}) {
-        const auto [n, c] = randomCrackAt(seed, trial);
-        const std::string f = crackFormula(n, c, 0.3 * kH);
-        INFO("seed " << seed << ", trial " << trial << ": " << f);
-        const Mesh m = meshFormula(f, kBox, kH);
-        requireClosed(m);
-        CHECK(countComponents(m) == 2);
-    }
+    checkRandomCrackApart(7, 24, 0.3 * kH);
+    checkRandomCrackApart(41, 53, 0.3 * kH);
 }
 
 TEST_CASE("a node goes into a gap that crosses only a corner of its Ω") {
@@ -871,11 +877,8 @@ TEST_CASE("a node goes into a gap that crosses only a corner of its Ω") {
     // holds the gap along the edge across it may not move (a node of its half at the rim leans on
     // it alone), and the gap crosses only a corner of the other node's Ω, beyond every point of a
     // grid of steps H/k centred in Ω; places beside the edge reach Ω's borders.
-    const auto [n, c] = randomCrackAt(7, 51);
-    const GridField field(crackLevelSet(n, c, 0.25 * kH, kH / 5), "gap");
     MeshReport report;
-    const Mesh dmc = dmcAtH(field, report);
-    CHECK(countComponents(dmc) == 2);
+    CHECK(countComponents(randomCrackLevelSetAtH(7, 51, 0.25 * kH, report)) == 2);
 }
 
 TEST_CASE("a node bridged to a node on the surface, and to nothing else, goes back to rest") {
@@ -883,10 +886,8 @@ TEST_CASE("a node bridged to a node on the surface, and to nothing else, goes ba
     // the rim edge where the gap meets the outside, and bridging from it moves a node into the
     // half's rim wedge that touches the rest of the half only through that node. The crossings
     // on the flipped node's edges sit on it, so the bridged node came out as a 6-vertex bubble.
-    const auto [n, c] = randomCrackAt(21, 52);
-    const GridField field(crackLevelSet(n, c, 1.0 * kH, kH / 5), "gap");
     MeshReport report;
-    const Mesh dmc = dmcAtH(field, report);
+    const Mesh dmc = randomCrackLevelSetAtH(21, 52, 1.0 * kH, report);
     CHECK(report.nodesFlipped > 0);
     CHECK(countComponents(dmc) == 2);
 }

@@ -4,7 +4,6 @@
 #include "vdbsurf/lattice/lattice.h"
 
 #include <cmath>
-#include <functional>
 #include <queue>
 #include <unordered_set>
 #include <utility>
@@ -209,20 +208,25 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         }
         return eInside;
     };
-    // Does the node at offset d have a neighbour on `side` other than c and `besides`, and, when
-    // `deeper`, one that has such a neighbour itself (other than d and c)? Two nodes that only
-    // have each other are cut off as surely as one alone (two nodes of a half beside a crack at
-    // its rim, whose other links to their half had moved into the crack: a 10-vertex bubble).
-    std::function<bool(const Coord&, bool, const Coord&, bool)> companyOn = [&](const Coord& d, bool side, const Coord& besides,
-                                                                             bool deeper) {
+    // Does the node at offset d have a neighbour on `side`, other than c and `besides`, for which
+    // `also` holds?
+    auto neighbourWith = [&](const Coord& d, bool side, const Coord& besides, const auto& also) {
         for (int j = 0; j < 6; ++j) {
             const Coord e = d + axisStep(j / 2, j % 2 ? 1 : -1);
             if (e == Coord(0, 0, 0) || e == besides || !validNode(c + e) || sideAt(e) != side) continue;
-            if (!deeper || companyOn(e, side, d, false)) return true;
+            if (also(e)) return true;
         }
         return false;
     };
-    auto neighbourOn = [&](const Coord& d, bool side) { return companyOn(d, side, Coord(0, 0, 0), true); };
+    // Does c's neighbour d have one on `side` (not c) that has one of its own (not d or c)? Two
+    // nodes that only have each other are cut off as surely as one alone (two nodes of a half
+    // beside a crack at its rim, whose other links to their half had moved into the crack: a
+    // 10-vertex bubble).
+    auto neighbourOn = [&](const Coord& d, bool side) {
+        return neighbourWith(d, side, Coord(0, 0, 0), [&](const Coord& e) {
+            return neighbourWith(e, side, d, [](const Coord&) { return true; });
+        });
+    };
     for (int k = 0; k < 6; ++k) {
         const Coord d = axisStep(k / 2, k % 2 ? 1 : -1);
         if (!validNode(c + d)) continue;
