@@ -511,6 +511,31 @@ TEST_CASE("a concave corner 1.4 cells below a notch's rim is kept, not cut off b
     CHECK(nearestVertex(dmc, shape.concaveCorner()) <= 0.1 * h);
 }
 
+TEST_CASE("a notch's node the thin search moved into a wall's wedge is not left as a bubble when the notch's corner flips") {
+    // Found at random (notches about a cell deep): the thin search moved the notch's outside node
+    // into the wedge between a notch wall and the face it is cut into, where it hung on one inside
+    // node; the sharp pass flipped the notch's corner node out (or bridged that node out to join
+    // it), and the node was left inside alone — a bubble of 8 triangles beside the notch, flat on
+    // its wall or around its rim.
+    struct Case {
+        double ax, ay, az, cx, cy, cz, notch, h;
+    };
+    const Case c = GENERATE(Case{0.96345410978425183, 2.2739127200773916, 2.6916060620614668, 0.056391692539094679, 0.083281974636230244,
+                                 0.087438065191793424, 0.35, 0.3232657885749689},
+                            Case{5.9177360730724944, 2.2324808543895673, 0.40254688876266936, 0.05431899912205429, 0.052584013447027067,
+                                 -0.024039341955998134, 0.5, 0.26027210012887048});
+    const NotchedCube shape{eulerRotation(c.ax, c.ay, c.az), Vec3d(c.cx, c.cy, c.cz), c.notch};
+    ExpressionField f(shape.formula(), kNotchBox);
+    MeshRequest req;
+    req.voxelSize = c.h;
+    MeshReport rep;
+    const Mesh dmc = meshField(f, req, rep);
+    INFO("notch " << c.notch << " h " << c.h << ": " << rep.nodesFlipped << " nodes flipped");
+    requireClosed(dmc);
+    CHECK(rep.nodesFlipped > 0);
+    CHECK(countComponents(dmc) == 1);
+}
+
 TEST_CASE("on a smooth torus, few nodes go onto edges: curvature's lines differ from cell to cell") {
     // Tangent planes of a tube 1.5 to 3 cells thick meet at more than the edge angle, so cells
     // there propose "edges"; their lines differ from cell to cell, so another cell rarely confirms

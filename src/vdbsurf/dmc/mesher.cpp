@@ -91,7 +91,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         SharpStats ss;
         placeSharpFeatures(field, lattice, *surface, sh, deformation, &ss);
         const auto t = std::chrono::steady_clock::now();
-        if (ss.flipped > 0) {
+        if (ss.flipped > 0 || ss.unhung > 0) {
             // Nodes changed side: cell cases changed around them. The leaves there are computed
             // again (or, for tests, the whole surface).
             activateCellsAround(lattice, ss.changedNodes);

@@ -3,6 +3,7 @@
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/dmc/cube_table.h"
+#include "vdbsurf/dmc/edge_runs.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/thin_search.h"
@@ -214,6 +215,27 @@ std::vector<Proposal> confirmedByNeighbours(const std::vector<Proposal>& all, do
     for (std::size_t i = 0; i < all.size(); ++i)
         if (keep[i]) kept.push_back(all[i]);
     return kept;
+}
+
+// The six neighbours of `nodes` that stand on another side than at rest (moved by the thin search
+// into a thin part, or placed on a feature on the other side), sorted.
+std::vector<Vec3i> crossedNeighbours(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& nodes,
+                                     const LatticeDeformation& deformation) {
+    NodeStates states(deformation);
+    std::vector<Coord> around;
+    for (const Vec3i& n : nodes)
+        for (int k = 0; k < 6; ++k) around.push_back(Coord(n.x, n.y, n.z) + axisStep(k / 2, k % 2 ? 1 : -1));
+    std::sort(around.begin(), around.end());
+    around.erase(std::unique(around.begin(), around.end()), around.end());
+    std::vector<Vec3i> crossed;
+    for (const Coord& c : around) {
+        if (!states.offsets.isValueOn(c)) continue;
+        double rest = 0;
+        field.sampleNodes(frame, Vec3i(c.x(), c.y(), c.z()), {1, 1, 1}, nullptr, &rest);
+        const bool restInside = isInside(rest, iso, field.inside());
+        if (states.inside(c, restInside) != restInside) crossed.emplace_back(c.x(), c.y(), c.z());
+    }
+    return crossed;
 }
 
 bool isCornerOf(const Coord& node, const Coord& cell) {
@@ -576,26 +598,37 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         to.cancel = options.cancel;
         out.changedNodes = flipped;
         out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped, nullptr, &out.changedNodes);
+        auto lessCoord = [](const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); };
+        std::vector<Vec3i> bridged = out.changedNodes;
+        std::sort(bridged.begin(), bridged.end(), lessCoord);
         // A flipped node is a join too: a tip of the other side that bridging could not join to it
-        // is a bubble (at a crack's rim: 4 or 8 triangles beside the crack).
+        // is a bubble (at a crack's rim: 4 or 8 triangles beside the crack). So is a node next to
+        // a flipped or bridged one that had been taken across to its side (by the thin search, or
+        // placed here on that side) and hung on it: the flip left it alone there (a notch's node
+        // moved into the wedge between the notch's wall and the face it is cut into, held by the
+        // node the notch's corner flipped: a bubble of 8 triangles on the wall).
+        std::vector<Vec3i> joins = out.changedNodes;
+        const std::vector<Vec3i> hanging = crossedNeighbours(field, frame, iso, out.changedNodes, deformation);
+        joins.insert(joins.end(), hanging.begin(), hanging.end());
         std::vector<std::pair<Coord, openvdb::Vec3f>> backToThinSearch;
-        for (const Vec3i& r : restoreLoneJoins(field, frame, iso, out.changedNodes, deformation)) {
-            const auto f = std::find(flipped.begin(), flipped.end(), r);
-            if (f == flipped.end()) {
-                --out.bridged;
-                continue;
-            }
-            for (const auto& m : movedBeforeFlip)
-                if (m.first == Coord(r.x, r.y, r.z)) backToThinSearch.push_back(m);
+        for (const Vec3i& r : restoreLoneJoins(field, frame, iso, joins, deformation)) {
             const auto placed = std::find_if(placedFirst.begin(), placedFirst.end(), [&](const Proposal& p) {
                 return p.node == Coord(r.x, r.y, r.z);
             });
-            (placed->kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) -= 1;
-            flipped.erase(f);
+            if (placed != placedFirst.end()) (placed->kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) -= 1;
+            const auto f = std::find(flipped.begin(), flipped.end(), r);
+            if (f != flipped.end()) {
+                for (const auto& m : movedBeforeFlip)
+                    if (m.first == Coord(r.x, r.y, r.z)) backToThinSearch.push_back(m);
+                flipped.erase(f);
+            } else if (std::binary_search(bridged.begin(), bridged.end(), r, lessCoord)) {
+                --out.bridged;
+            } else {
+                ++out.unhung;
+                out.changedNodes.push_back(r);
+            }
         }
-        std::sort(out.changedNodes.begin(), out.changedNodes.end(), [](const Vec3i& x, const Vec3i& y) {
-            return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z);
-        });
+        std::sort(out.changedNodes.begin(), out.changedNodes.end(), lessCoord);
         out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
         offsets.clear();
         onSurface.clear();

@@ -55,7 +55,10 @@ struct SharpStats {
     // Nodes that had no edge to the other side and changed side onto a feature's tip, and the
     // nodes moved to join them: when non-zero, cell cases changed and the surface is rebuilt.
     std::uint64_t flipped = 0, bridged = 0;
-    // The flipped and bridged nodes (sorted): the cells around them changed case.
+    // Nodes taken across by the thin search (or placed across here) that a flip left alone on
+    // their side, a bubble: back at rest, among changedNodes.
+    std::uint64_t unhung = 0;
+    // The flipped, bridged and unhung nodes (sorted): the cells around them changed case.
     std::vector<Vec3i> changedNodes;
     double seconds = 0;
 };
