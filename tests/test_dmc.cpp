@@ -536,6 +536,34 @@ TEST_CASE("a notch's node the thin search moved into a wall's wedge is not left 
     CHECK(countComponents(dmc) == 1);
 }
 
+TEST_CASE("a part within a cell of the domain's edge gives a closed mesh: nodes on the lattice's outer faces keep their side") {
+    // The cells beyond the lattice's outer nodes are not meshed, so a node there moved into a part
+    // (by the thin search, or flipped onto a tip) left the mesh open along the domain's edge.
+    SECTION("a ball between the outer layer of nodes and the next, with the sharp pass off and on") {
+        const bool sharp = GENERATE(false, true);
+        for (double z : {-0.75, -0.78, -0.7}) {
+            INFO("ball at z " << z << (sharp ? ", sharp" : ""));
+            const Mesh m = meshFormula("sqrt(x^2+y^2+(z-" + num(z) + ")^2)-0.2", Box3{{-1, -1, -1}, {1, 1, 1}}, 0.5, MeshMethod::Dmc,
+                                       true, sharp);
+            requireClosed(m);
+            CHECK(countComponents(m) == 1);
+        }
+    }
+    SECTION("an L of bars 1.2 cells thick reaching within half a cell of the edge (found at random)") {
+        const Rotation R = eulerRotation(4.2369427054564239, 5.7073817674909995, 4.4982310048173471);
+        const Vec3d c(0.057808851298658384, -0.082284428762407436, -0.013696355069961141);
+        std::string l[3];
+        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+        auto box = [&](double ax, double ay, double bx, double by, double bz) {
+            return "max(max(abs(" + l[0] + "-" + num(ax) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(ay) + ")-" + num(by) + "),abs(" +
+                   l[2] + ")-" + num(bz) + ")";
+        };
+        const Mesh m = meshFormula("min(" + box(0, 0, 1, 0.3, 0.3) + "," + box(-0.7, 0.6, 0.3, 0.9, 0.3) + ")", kNotchBox, 0.57003315363455254);
+        requireClosed(m);
+        CHECK(countComponents(m) == 1);
+    }
+}
+
 TEST_CASE("on a smooth torus, few nodes go onto edges: curvature's lines differ from cell to cell") {
     // Tangent planes of a tube 1.5 to 3 cells thick meet at more than the edge angle, so cells
     // there propose "edges"; their lines differ from cell to cell, so another cell rarely confirms

@@ -151,6 +151,13 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
 EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
                                           std::uint64_t& evaluated) const {
     MoveEffect effect;
+    // A node on the lattice's outer faces keeps its side: marching cubes would close the surface
+    // around it in cells beyond the lattice, which are not meshed (a shape within a cell of the
+    // domain's edge, a node there moved into it: the mesh was open along the edge).
+    if (!validNode(c.offsetBy(-1)) || !validNode(c.offsetBy(1))) {
+        effect.keeps = false;
+        return effect;
+    }
     double around[27];
     mField.sampleNodes(mFrame, {c.x() - 1, c.y() - 1, c.z() - 1}, {3, 3, 3}, nullptr, around);
     // Where the node at offset d from c is now, and on which side.

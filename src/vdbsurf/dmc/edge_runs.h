@@ -71,7 +71,8 @@ public:
     // six edges, the other nodes where `nodes` puts them.
     struct MoveEffect {
         bool keeps = true;      // no edge hides a part it showed, no face turns ambiguous across a part,
-                                // no feature node loses its last edge to the other side
+                                // no feature node loses its last edge to the other side, c is not on
+                                // the lattice's outer faces
         std::size_t before = 0; // hidden runs on the six edges before the move
         std::size_t after = 0;  // and after (bulges that bent paths go around count as before)
         bool alone = true;      // no neighbour on c's side: c stands for a thin part itself
