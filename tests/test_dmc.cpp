@@ -564,6 +564,34 @@ TEST_CASE("a part within a cell of the domain's edge gives a closed mesh: nodes 
     }
 }
 
+TEST_CASE("a node moved into a step's edge whose surface the nodes placed around it close off goes back: no bubble") {
+    // Found at random (a step and a slot cut into rotated boxes): the thin search moved a node into
+    // the solid along a convex edge, the sharp pass then placed each of its neighbours on that side
+    // on the faces, and the crossings around it sat on those nodes: its surface was a piece of its
+    // own touching the rest at their points.
+    struct Case {
+        double ax, ay, az, cx, cy, cz, h;
+        bool slot;
+    };
+    const Case c = GENERATE(Case{4.3883037863160519, 5.6748380467129875, 3.9770244475076781, -0.098968169988161755, 0.014471298372265197,
+                                 -0.027700731676863821, 0.18270242933351039, false},
+                            Case{4.6264013414751393, 5.8264106620487457, 4.2991611848861542, -0.015158858040298873, 0.01327027506360361,
+                                 -0.057004155565688469, 0.30496088914308928, true});
+    const Rotation R = eulerRotation(c.ax, c.ay, c.az);
+    std::string l[3];
+    for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), Vec3d(c.cx, c.cy, c.cz));
+    auto box = [&](double ax, double ay, double az, double bx, double by, double bz) {
+        return "max(max(abs(" + l[0] + "-" + num(ax) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(ay) + ")-" + num(by) + "),abs(" + l[2] +
+               "-" + num(az) + ")-" + num(bz) + ")";
+    };
+    // A box 2 x 2 x 1 with a step (or a slot) cut into its top.
+    const std::string cut = c.slot ? box(0, 0, 0.5, 0.25, 1.2, 0.3) : box(0.5, 0, 0.5, 0.5, 1.2, 0.3);
+    const Mesh m = meshFormula("max(" + box(0, 0, 0, 1, 1, 0.5) + ",-(" + cut + "))", kNotchBox, c.h);
+    INFO((c.slot ? "slot" : "step") << " h " << c.h);
+    requireClosed(m);
+    CHECK(countComponents(m) == 1);
+}
+
 TEST_CASE("on a smooth torus, few nodes go onto edges: curvature's lines differ from cell to cell") {
     // Tangent planes of a tube 1.5 to 3 cells thick meet at more than the edge angle, so cells
     // there propose "edges"; their lines differ from cell to cell, so another cell rarely confirms

@@ -238,6 +238,63 @@ std::vector<Vec3i> crossedNeighbours(const Field& field, const LatticeFrame& fra
     return crossed;
 }
 
+// Does the surface around node x (moved across, off the surface) meet the rest of the mesh only at
+// points? Crossings on the edges of a node placed on a feature sit on that node, so where every
+// loop through x's crossings in its eight cells holds nothing but them and such points (and the
+// segments between two such points lie on faces of x's cells), x's part of the surface is closed
+// on its own: a bubble touching the rest at feature nodes (a node moved into a step's edge between
+// two nodes placed on its faces: 8 triangles apart). `inside(o)` and `placed(o)` tell the side of
+// the node at offset o from x and whether it stands on a feature.
+template <typename Side, typename Placed> bool meetsOnlyAtFeatureNodes(const Side& inside, const Placed& placed) {
+    for (int cell = 0; cell < 8; ++cell) {
+        const Coord origin(-(cell & 1), -((cell >> 1) & 1), -((cell >> 2) & 1)); // of the cell, from x
+        unsigned config = 0;
+        for (int k = 0; k < 8; ++k)
+            if (inside(origin.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1))) config |= 1u << k;
+        const CubeCase& cube = cubeCase(config);
+        // What an edge's crossing is: 0 x's own, 1 + k on the feature node at corner k, 9 another.
+        auto vertexOf = [&](int e) {
+            const Vec3i o = cubeEdgeOrigin(e);
+            const Coord a = origin.offsetBy(o.x, o.y, o.z), b = a + axisStep(cubeEdgeAxis(e), 1);
+            if (a == Coord(0, 0, 0) || b == Coord(0, 0, 0)) return 0;
+            for (const Coord& n : {a, b})
+                if (placed(n)) {
+                    const Coord k = n - origin;
+                    return 1 + k.x() + 2 * k.y() + 4 * k.z();
+                }
+            return 9;
+        };
+        int start = 0;
+        for (int l = 0; l < cube.loopCount; start += cube.loopSize[l++]) {
+            const std::uint8_t* loop = cube.edges + start;
+            const int size = cube.loopSize[l];
+            int vertex[12];
+            bool throughX = false;
+            for (int i = 0; i < size; ++i) {
+                vertex[i] = vertexOf(loop[i]);
+                throughX = throughX || vertex[i] == 0;
+            }
+            if (!throughX) continue;
+            for (int i = 0; i < size; ++i) {
+                if (vertex[i] == 9) return false;
+                const int j = (i + 1) % size;
+                if (vertex[i] == 0 || vertex[j] == 0 || vertex[i] == vertex[j]) continue;
+                // Two feature points: their segment lies on the face the two edges share, which
+                // the cell across shares too; unless x is a corner of that face, that cell is not
+                // one of x's, and its surface goes on from there.
+                const Vec3i oi = cubeEdgeOrigin(loop[i]), oj = cubeEdgeOrigin(loop[j]);
+                const int ai = cubeEdgeAxis(loop[i]), aj = cubeEdgeAxis(loop[j]);
+                const int normal = 3 - ai - aj; // the face's axis (two edges of one face: different axes)
+                if (ai == aj) return false;     // (parallel edges of one loop: not on one face)
+                const int side = oi[std::size_t(normal)];
+                if (oj[std::size_t(normal)] != side) return false;
+                if (-origin[normal] != side) return false; // x is not on that face
+            }
+        }
+    }
+    return true;
+}
+
 bool isCornerOf(const Coord& node, const Coord& cell) {
     const Coord d = node - cell;
     return d.x() >= 0 && d.x() <= 1 && d.y() >= 0 && d.y() <= 1 && d.z() >= 0 && d.z() <= 1;
@@ -736,6 +793,45 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         if (otherSide == 0 || otherSide == 6 || sharesCrossing) continue;
         place(along[i], along[i].inside);
         ++out.nodesAlongEdges;
+    }
+    // Last, nodes moved across whose surface the placed nodes around them have closed off
+    // (meetsOnlyAtFeatureNodes) go back to rest; decided on one state, then applied.
+    std::vector<Vec3i> closedOff;
+    {
+        NodeStates states(deformation);
+        std::vector<Coord> candidates;
+        for (auto it = deformation.onSurface->cbeginValueOn(); it; ++it)
+            for (int k = 0; k < 6; ++k) {
+                const Coord c = it.getCoord() + axisStep(k / 2, k % 2 ? 1 : -1);
+                if (states.offsets.isValueOn(c) && !states.onSurface.isValueOn(c)) candidates.push_back(c);
+            }
+        std::sort(candidates.begin(), candidates.end());
+        candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+        for (const Coord& x : candidates) {
+            double around[27];
+            field.sampleNodes(frame, Vec3i(x.x() - 1, x.y() - 1, x.z() - 1), {3, 3, 3}, nullptr, around);
+            auto inside = [&](const Coord& o) {
+                return states.inside(x + o, isInside(around[(o.x() + 1) + 3 * (o.y() + 1) + 9 * (o.z() + 1)], iso, side));
+            };
+            const bool xInside = inside(Coord(0, 0, 0));
+            if (xInside == isInside(around[13], iso, side)) continue; // not across
+            bool anyOffSurface = false; // a neighbour on x's side off the surface joins x's surface to its own
+            for (int k = 0; k < 6 && !anyOffSurface; ++k) {
+                const Coord o = axisStep(k / 2, k % 2 ? 1 : -1);
+                anyOffSurface = inside(o) == xInside && !states.onSurface.isValueOn(x + o);
+            }
+            if (anyOffSurface) continue;
+            if (meetsOnlyAtFeatureNodes(inside, [&](const Coord& o) { return states.onSurface.isValueOn(x + o); }))
+                closedOff.emplace_back(x.x(), x.y(), x.z());
+        }
+    }
+    if (!closedOff.empty()) {
+        for (const Vec3i& c : closedOff) offsets.setValueOff(Coord(c.x, c.y, c.z), openvdb::Vec3f(0.0f));
+        out.unhung += closedOff.size();
+        out.changedNodes.insert(out.changedNodes.end(), closedOff.begin(), closedOff.end());
+        std::sort(out.changedNodes.begin(), out.changedNodes.end(),
+                  [](const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); });
+        out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
     }
     out.flipped = flipped.size();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -25,7 +25,10 @@
 //   represents a thin part (a node the thin search moved may be placed, keeping the side it
 //   moved to);
 // - when several cells propose to move one node, a corner beats an edge, then the proposal
-//   closest to the node's place wins, then the lower cell coordinate.
+//   closest to the node's place wins, then the lower cell coordinate;
+// - a node the thin search moved across goes back to rest where the pass left it alone on its
+//   side (its neighbour there flipped or bridged away) or where the nodes placed around it close
+//   its surface off (the crossings on their edges sit on them): either way a bubble.
 #pragma once
 #include "vdbsurf/field/field.h"
 
