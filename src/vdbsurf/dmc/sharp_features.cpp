@@ -217,7 +217,9 @@ std::vector<Proposal> confirmedByNeighbours(const std::vector<Proposal>& all, do
     return kept;
 }
 
-// The six neighbours of `nodes` that stand on another side than at rest (moved by the thin search
+bool coordLess(const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); }
+
+// The axis neighbours of `nodes` that stand on another side than at rest (moved by the thin search
 // into a thin part, or placed on a feature on the other side), sorted.
 std::vector<Vec3i> crossedNeighbours(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& nodes,
                                      const LatticeDeformation& deformation) {
@@ -284,8 +286,8 @@ template <typename Side, typename Placed> bool meetsOnlyAtFeatureNodes(const Sid
                 // one of x's, and its surface goes on from there.
                 const Vec3i oi = cubeEdgeOrigin(loop[i]), oj = cubeEdgeOrigin(loop[j]);
                 const int ai = cubeEdgeAxis(loop[i]), aj = cubeEdgeAxis(loop[j]);
-                const int normal = 3 - ai - aj; // the face's axis (two edges of one face: different axes)
-                if (ai == aj) return false;     // (parallel edges of one loop: not on one face)
+                if (ai == aj) return false; // (parallel edges of one loop: not on one face)
+                const int normal = 3 - ai - aj; // the face's axis
                 const int side = oi[std::size_t(normal)];
                 if (oj[std::size_t(normal)] != side) return false;
                 if (-origin[normal] != side) return false; // x is not on that face
@@ -655,9 +657,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         to.cancel = options.cancel;
         out.changedNodes = flipped;
         out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped, nullptr, &out.changedNodes);
-        auto lessCoord = [](const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); };
         std::vector<Vec3i> bridged = out.changedNodes;
-        std::sort(bridged.begin(), bridged.end(), lessCoord);
+        std::sort(bridged.begin(), bridged.end(), coordLess);
         // A flipped node is a join too: a tip of the other side that bridging could not join to it
         // is a bubble (at a crack's rim: 4 or 8 triangles beside the crack). So is a node next to
         // a flipped or bridged one that had been taken across to its side (by the thin search, or
@@ -678,14 +679,14 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 for (const auto& m : movedBeforeFlip)
                     if (m.first == Coord(r.x, r.y, r.z)) backToThinSearch.push_back(m);
                 flipped.erase(f);
-            } else if (std::binary_search(bridged.begin(), bridged.end(), r, lessCoord)) {
+            } else if (std::binary_search(bridged.begin(), bridged.end(), r, coordLess)) {
                 --out.bridged;
             } else {
                 ++out.unhung;
                 out.changedNodes.push_back(r);
             }
         }
-        std::sort(out.changedNodes.begin(), out.changedNodes.end(), lessCoord);
+        std::sort(out.changedNodes.begin(), out.changedNodes.end(), coordLess);
         out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
         offsets.clear();
         onSurface.clear();
@@ -829,8 +830,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         for (const Vec3i& c : closedOff) offsets.setValueOff(Coord(c.x, c.y, c.z), openvdb::Vec3f(0.0f));
         out.unhung += closedOff.size();
         out.changedNodes.insert(out.changedNodes.end(), closedOff.begin(), closedOff.end());
-        std::sort(out.changedNodes.begin(), out.changedNodes.end(),
-                  [](const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); });
+        std::sort(out.changedNodes.begin(), out.changedNodes.end(), coordLess);
         out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
     }
     out.flipped = flipped.size();

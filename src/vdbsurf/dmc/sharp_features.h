@@ -58,8 +58,9 @@ struct SharpStats {
     // Nodes that had no edge to the other side and changed side onto a feature's tip, and the
     // nodes moved to join them: when non-zero, cell cases changed and the surface is rebuilt.
     std::uint64_t flipped = 0, bridged = 0;
-    // Nodes taken across by the thin search (or placed across here) that a flip left alone on
-    // their side, a bubble: back at rest, among changedNodes.
+    // Nodes moved across (by the thin search, or placed across here) that a flip left alone on
+    // their side, or whose surface the nodes placed around them close off — bubbles: back at rest,
+    // among changedNodes.
     std::uint64_t unhung = 0;
     // The flipped, bridged and unhung nodes (sorted): the cells around them changed case.
     std::vector<Vec3i> changedNodes;
