@@ -457,6 +457,19 @@ struct NotchedCube {
 
 const Box3 kNotchBox{{-2, -2, -2}, {2, 2, 2}};
 
+// A frame rotated by R and moved by c, as formula text: its local coordinates, and boxes in them.
+struct FormulaFrame {
+    std::string l[3];
+    FormulaFrame(const Rotation& R, const Vec3d& c) {
+        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+    }
+    // The box of half extents b around p, as the largest of its slabs' distances.
+    std::string box(double px, double py, double pz, double bx, double by, double bz) const {
+        return "max(max(abs(" + l[0] + "-" + num(px) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(py) + ")-" + num(by) + "),abs(" + l[2] +
+               "-" + num(pz) + ")-" + num(bz) + ")";
+    }
+};
+
 } // namespace
 
 TEST_CASE("a notch cut into a rotated cube keeps its concave corner and edges at random orientations and spacings") {
@@ -550,15 +563,10 @@ TEST_CASE("a part within a cell of the domain's edge gives a closed mesh: nodes 
         }
     }
     SECTION("an L of bars 1.2 cells thick reaching within half a cell of the edge (found at random)") {
-        const Rotation R = eulerRotation(4.2369427054564239, 5.7073817674909995, 4.4982310048173471);
-        const Vec3d c(0.057808851298658384, -0.082284428762407436, -0.013696355069961141);
-        std::string l[3];
-        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
-        auto box = [&](double ax, double ay, double bx, double by, double bz) {
-            return "max(max(abs(" + l[0] + "-" + num(ax) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(ay) + ")-" + num(by) + "),abs(" +
-                   l[2] + ")-" + num(bz) + ")";
-        };
-        const Mesh m = meshFormula("min(" + box(0, 0, 1, 0.3, 0.3) + "," + box(-0.7, 0.6, 0.3, 0.9, 0.3) + ")", kNotchBox, 0.57003315363455254);
+        const FormulaFrame frame(eulerRotation(4.2369427054564239, 5.7073817674909995, 4.4982310048173471),
+                                 Vec3d(0.057808851298658384, -0.082284428762407436, -0.013696355069961141));
+        const Mesh m = meshFormula("min(" + frame.box(0, 0, 0, 1, 0.3, 0.3) + "," + frame.box(-0.7, 0.6, 0, 0.3, 0.9, 0.3) + ")", kNotchBox,
+                                   0.57003315363455254);
         requireClosed(m);
         CHECK(countComponents(m) == 1);
     }
@@ -577,16 +585,10 @@ TEST_CASE("a node moved into a step's edge whose surface the nodes placed around
                                  -0.027700731676863821, 0.18270242933351039, false},
                             Case{4.6264013414751393, 5.8264106620487457, 4.2991611848861542, -0.015158858040298873, 0.01327027506360361,
                                  -0.057004155565688469, 0.30496088914308928, true});
-    const Rotation R = eulerRotation(c.ax, c.ay, c.az);
-    std::string l[3];
-    for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), Vec3d(c.cx, c.cy, c.cz));
-    auto box = [&](double ax, double ay, double az, double bx, double by, double bz) {
-        return "max(max(abs(" + l[0] + "-" + num(ax) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(ay) + ")-" + num(by) + "),abs(" + l[2] +
-               "-" + num(az) + ")-" + num(bz) + ")";
-    };
+    const FormulaFrame frame(eulerRotation(c.ax, c.ay, c.az), Vec3d(c.cx, c.cy, c.cz));
     // A box 2 x 2 x 1 with a step (or a slot) cut into its top.
-    const std::string cut = c.slot ? box(0, 0, 0.5, 0.25, 1.2, 0.3) : box(0.5, 0, 0.5, 0.5, 1.2, 0.3);
-    const Mesh m = meshFormula("max(" + box(0, 0, 0, 1, 1, 0.5) + ",-(" + cut + "))", kNotchBox, c.h);
+    const std::string cut = c.slot ? frame.box(0, 0, 0.5, 0.25, 1.2, 0.3) : frame.box(0.5, 0, 0.5, 0.5, 1.2, 0.3);
+    const Mesh m = meshFormula("max(" + frame.box(0, 0, 0, 1, 1, 0.5) + ",-(" + cut + "))", kNotchBox, c.h);
     INFO((c.slot ? "slot" : "step") << " h " << c.h);
     requireClosed(m);
     CHECK(countComponents(m) == 1);
@@ -605,23 +607,19 @@ TEST_CASE("random rotated shapes with sharp convex and concave edges come out cl
         const double ax = u(rng) * 2 * kPi, ay = u(rng) * 2 * kPi, az = u(rng) * 2 * kPi;
         const double cx = (u(rng) - 0.5) * 0.2, cy = (u(rng) - 0.5) * 0.2, cz = (u(rng) - 0.5) * 0.2;
         const double h = 0.25 + 0.35 * u(rng);
-        const Rotation R = eulerRotation(ax, ay, az);
-        std::string l[3];
-        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), Vec3d(cx, cy, cz));
-        auto box = [&](double px, double py, double pz, double bx, double by, double bz) {
-            return "max(max(abs(" + l[0] + "-" + num(px) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(py) + ")-" + num(by) + "),abs(" +
-                   l[2] + "-" + num(pz) + ")-" + num(bz) + ")";
-        };
+        const FormulaFrame frame(eulerRotation(ax, ay, az), Vec3d(cx, cy, cz));
+        const std::string* l = frame.l;
         auto ball = [&](double px) { return "sqrt((" + l[0] + "-" + num(px) + ")^2+" + l[1] + "^2+" + l[2] + "^2)-1"; };
         const std::string radial = "sqrt(" + l[0] + "^2+" + l[1] + "^2)";
         std::string f;
-        if (shape == "L") f = "min(" + box(0, 0, 0, 1, 0.3, 0.3) + "," + box(-0.7, 0.6, 0, 0.3, 0.9, 0.3) + ")";
-        if (shape == "step") f = "max(" + box(0, 0, 0, 1, 1, 0.5) + ",-(" + box(0.5, 0, 0.5, 0.5, 1.2, 0.3) + "))";
-        if (shape == "slot") f = "max(" + box(0, 0, 0, 1, 1, 0.5) + ",-(" + box(0, 0, 0.5, 0.25, 1.2, 0.3) + "))";
-        if (shape == "cross") f = "min(min(" + box(0, 0, 0, 1, 0.3, 0.3) + "," + box(0, 0, 0, 0.3, 1, 0.3) + ")," + box(0, 0, 0, 0.3, 0.3, 1) + ")";
+        if (shape == "L") f = "min(" + frame.box(0, 0, 0, 1, 0.3, 0.3) + "," + frame.box(-0.7, 0.6, 0, 0.3, 0.9, 0.3) + ")";
+        if (shape == "step") f = "max(" + frame.box(0, 0, 0, 1, 1, 0.5) + ",-(" + frame.box(0.5, 0, 0.5, 0.5, 1.2, 0.3) + "))";
+        if (shape == "slot") f = "max(" + frame.box(0, 0, 0, 1, 1, 0.5) + ",-(" + frame.box(0, 0, 0.5, 0.25, 1.2, 0.3) + "))";
+        if (shape == "cross")
+            f = "min(min(" + frame.box(0, 0, 0, 1, 0.3, 0.3) + "," + frame.box(0, 0, 0, 0.3, 1, 0.3) + ")," + frame.box(0, 0, 0, 0.3, 0.3, 1) + ")";
         if (shape == "cylinder") f = "max(" + radial + "-0.8,abs(" + l[2] + ")-0.5)";
         if (shape == "lens") f = "max(" + ball(0.5) + "," + ball(-0.5) + ")";
-        if (shape == "hole") f = "max(" + box(0, 0, 0, 1, 1, 0.4) + ",0.45-" + radial + ")";
+        if (shape == "hole") f = "max(" + frame.box(0, 0, 0, 1, 1, 0.4) + ",0.45-" + radial + ")";
         ExpressionField field(f, kNotchBox);
         MeshRequest req;
         req.voxelSize = h;
