@@ -551,7 +551,8 @@ TEST_CASE("a notch's node the thin search moved into a wall's wedge is not left 
 
 TEST_CASE("a part within a cell of the domain's edge gives a closed mesh: nodes on the lattice's outer faces keep their side") {
     // The cells beyond the lattice's outer nodes are not meshed, so a node there moved into a part
-    // (by the thin search, or flipped onto a tip) left the mesh open along the domain's edge.
+    // (by the thin search, bridging or the hidden-edge phase) left the mesh open along the
+    // domain's edge. (A node flipped onto a tip there sits on the surface: nothing beyond it.)
     SECTION("a ball between the outer layer of nodes and the next, with the sharp pass off and on") {
         const bool sharp = GENERATE(false, true);
         for (double z : {-0.75, -0.78, -0.7}) {
