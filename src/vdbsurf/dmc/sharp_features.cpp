@@ -686,8 +686,6 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 out.changedNodes.push_back(r);
             }
         }
-        std::sort(out.changedNodes.begin(), out.changedNodes.end(), coordLess);
-        out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
         offsets.clear();
         onSurface.clear();
         insideOnSurface.clear();
@@ -830,9 +828,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         for (const Vec3i& c : closedOff) offsets.setValueOff(Coord(c.x, c.y, c.z), openvdb::Vec3f(0.0f));
         out.unhung += closedOff.size();
         out.changedNodes.insert(out.changedNodes.end(), closedOff.begin(), closedOff.end());
-        std::sort(out.changedNodes.begin(), out.changedNodes.end(), coordLess);
-        out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
     }
+    std::sort(out.changedNodes.begin(), out.changedNodes.end(), coordLess);
+    out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
     out.flipped = flipped.size();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats) *stats = out;
