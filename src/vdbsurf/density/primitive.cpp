@@ -102,6 +102,7 @@ PreparedPrimitive::PreparedPrimitive(const Primitive& p) : mP(p) {
     }
     mCoreBox = {p.center - half, p.center + half};
     mMinRadius = std::min({p.size.x, p.size.y, p.size.z});
+    mMaxRadius = std::max({p.size.x, p.size.y, p.size.z});
     mInverseRadii = {1.0 / p.size.x, 1.0 / p.size.y, 1.0 / p.size.z};
     mSphere = p.core == CoreShape::Ellipsoid && p.size.x == p.size.y && p.size.y == p.size.z;
     const Vec3d grow(p.falloff, p.falloff, p.falloff);
@@ -222,15 +223,74 @@ void PreparedPrimitive::densityBounds(const Box3& box, double& lo, double& hi) c
 }
 
 void PreparedPrimitive::densityBoundsAround(const Vec3d& c, double radius, double& lo, double& hi) const {
-    lo = hi = 0;
+    const DensityAnchor a = anchorAround(c, radius);
+    lo = a.lo;
+    hi = a.hi;
+}
+
+double PreparedPrimitive::nearestCorePoint(const Vec3d& p, Vec3d& closest) const {
+    // The distance exactly as coreDistance(p) computes it, so bounds from either agree bit for bit.
+    closest = p;
+    if (mSphere) {
+        const Vec3d d = p - mP.center;
+        const double len = length(d);
+        if (len > mP.size.x) closest = mP.center + d * (mP.size.x / len);
+        return std::max(0.0, len - mP.size.x);
+    }
+    const Vec3d q = toLocal(p);
+    if (mP.core == CoreShape::Box) {
+        const double d = length(boxExcess(q));
+        const Vec3d x(std::clamp(q.x, -mP.size.x, mP.size.x), std::clamp(q.y, -mP.size.y, mP.size.y),
+                      std::clamp(q.z, -mP.size.z, mP.size.z));
+        if (d > 0) closest = mP.center + toWorld(x);
+        return d;
+    }
+    Vec3d x;
+    const double d = ellipsoidDistance(mP.size, q, x);
+    if (d > 0) closest = mP.center + toWorld(x);
+    return d;
+}
+
+DensityAnchor PreparedPrimitive::anchorAround(const Vec3d& c, double radius) const {
+    DensityAnchor a;
     if (c.x + radius < mInfluence.min.x || c.y + radius < mInfluence.min.y || c.z + radius < mInfluence.min.z ||
         c.x - radius > mInfluence.max.x || c.y - radius > mInfluence.max.y || c.z - radius > mInfluence.max.z)
-        return;
+        return a;
     const double slack = radius * (1 + 1e-12) + 1e-12; // the caller's ball is from rounded voxel positions
-    if (mP.core == CoreShape::Ellipsoid && distanceLowerBound(scaledRadius(toLocal(c))) - slack >= mP.falloff) return;
-    const double d = coreDistance(c);
-    lo = mP.weight * falloffValue((d + slack) / mP.falloff);
-    hi = mP.weight * falloffValue(std::max(0.0, d - slack) / mP.falloff);
+    if (mP.core == CoreShape::Ellipsoid && distanceLowerBound(scaledRadius(toLocal(c))) - slack >= mP.falloff) return a;
+    Vec3d x;
+    const double d = nearestCorePoint(c, x);
+    a.lo = mP.weight * falloffValue((d + slack) / mP.falloff);
+    a.hi = mP.weight * falloffValue(std::max(0.0, d - slack) / mP.falloff);
+    // The normal's direction is the closest point's rounding error over the distance: trusted
+    // only a millionth of the core's size out, where that error is far below densityBoundsNear's slack.
+    if (d > 1e-6 * mMaxRadius) {
+        const Vec3d n = c - x;
+        const double len = length(n);
+        if (len > 0) {
+            a.hasNormal = true;
+            a.closest = x;
+            a.normal = n / len;
+        }
+    }
+    return a;
+}
+
+void PreparedPrimitive::densityBoundsNear(const DensityAnchor& a, const Vec3d& v, double e, double& lo, double& hi) const {
+    // The cube lies in the anchor's ball (the caller's promise), so the ball's bounds hold too.
+    lo = a.lo;
+    hi = a.hi;
+    if (!a.hasNormal || !(lo < hi)) return;
+    const Vec3d r = v - a.closest;
+    const double len = length(r);
+    // Rounding in the closest point, the normal and these sums is ~1e-15 of the lengths involved.
+    const double slack = 1e-9 * (len + mMaxRadius) + 1e-14 * (std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z));
+    const Vec3d& n = a.normal;
+    const double nearest = dot(n, r) - e * (std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z)); // the plane's distance, over the cube
+    const double dmin = std::max(0.0, nearest - slack);
+    const double dmax = len + std::sqrt(3.0) * e + slack;
+    lo = std::max(lo, mP.weight * falloffValue(dmax / mP.falloff));
+    hi = std::min(hi, mP.weight * falloffValue(dmin / mP.falloff));
 }
 
 } // namespace vdbsurf

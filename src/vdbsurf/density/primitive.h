@@ -30,6 +30,18 @@ struct Primitive {
     DensityOp op = DensityOp::Add;
 };
 
+// What one exact distance at a point c tells about a primitive's density near c. Besides the
+// bounds over a ball around c, the nearest core point x and the unit normal n = (c − x)/|c − x|
+// bound the distance at every p, because the core is convex: it lies in the half-space
+// n·(y − x) ≤ 0, so the distance is at least n·(p − x); and x is a core point, so it is at most
+// |p − x|. Near c both are tight to second order (unlike c's distance ± |p − c|), which is
+// what lets a block of voxels be decided voxel by voxel without a root per voxel.
+struct DensityAnchor {
+    double lo = 0, hi = 0; // the density's bounds over the ball
+    bool hasNormal = false; // c is outside the core by enough that n is accurate
+    Vec3d closest, normal;
+};
+
 // A primitive prepared for evaluation: its rotation as a matrix and its bounding boxes.
 class PreparedPrimitive {
 public:
@@ -60,6 +72,10 @@ public:
     }
     // The same over a ball, from the centre's distance alone: cheaper and looser, for small blocks.
     void densityBoundsAround(const Vec3d& centre, double radius, double& lo, double& hi) const;
+    // That ball's bounds and what the centre's distance found on the way (anchorAround), and then
+    // bounds over a cube v ± halfWidth inside the ball from the anchor alone — a few flops, no root.
+    DensityAnchor anchorAround(const Vec3d& centre, double radius) const;
+    void densityBoundsNear(const DensityAnchor& anchor, const Vec3d& v, double halfWidth, double& lo, double& hi) const;
 
     // Where the density can be non-zero (core grown by the falloff), and the core's own box.
     const Box3& influenceBox() const { return mInfluence; }
@@ -71,11 +87,12 @@ private:
     bool beyondFalloff(const Vec3d& p) const; // a cheap sufficient test for density 0
     double scaledRadius(const Vec3d& local) const; // ellipsoids: |local / radii|, ≤ 1 in the core
     double distanceLowerBound(double scaled) const; // ellipsoids: the distance is at least this
+    double nearestCorePoint(const Vec3d& p, Vec3d& closest) const; // coreDistance(p), and the point (world)
     Vec3d boxExcess(const Vec3d& local) const;  // box cores: how far past each face
     Primitive mP;
     double mR[3][3]; // local -> world rotation (columns: the local axes in world)
     Box3 mInfluence, mCoreBox;
-    double mMinRadius = 0;
+    double mMinRadius = 0, mMaxRadius = 0;
     Vec3d mInverseRadii;
     bool mSphere = false; // an ellipsoid with equal radii: distances without rotation or root
 };

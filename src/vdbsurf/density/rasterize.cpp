@@ -34,18 +34,20 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // Blocks are decided whole before their leaves: a node, then halves of it down to 16³, so the
 // leaves asked for bounds follow the surface instead of filling every node it passes through.
 constexpr int kLeaf = 8, kNode = 128;
-// Surface-only leaves are decided per 2³ block.
-constexpr int kBlock = 2, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
+// Surface-only leaves are decided per 4³ block, then voxel by voxel in blocks the surface may pass.
+constexpr int kBlock = 4, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
 
 enum class Fill { Empty, Full, Exact };
 
 // What an edit needs to update an exact leaf without summing every primitive again: the
-// fixed-point sum at each voxel that was evaluated and, in surface-only mode, each 2³ block's
-// bound sums (which decide which voxels are evaluated).
+// fixed-point sum at each voxel that was evaluated and, in surface-only mode, each 4³ block's
+// bound sums and, in the blocks those leave exact, each voxel's bound sums over its 3³
+// neighbourhood (which together decide which voxels are evaluated).
 struct LeafSums {
     std::array<FixedDensity, LeafT::SIZE> voxel{};
     std::bitset<LeafT::SIZE> known;
     std::array<FixedInterval, kBlocksPerLeaf> blocks{};
+    std::array<FixedInterval, LeafT::SIZE> voxelBounds{};
 };
 
 struct LeafResult {
@@ -152,7 +154,7 @@ struct DensityRaster::Impl {
     }
 
     // Everything a leaf's rule reads lies in its reach: the leaf itself in full mode; in
-    // surface-only mode the balls around its blocks (below), which reach 2.1 voxels past it.
+    // surface-only mode the balls around its blocks (below), which reach 2.9 voxels past it.
     int reachGrow() const { return options.surfaceOnly ? 3 : 0; }
     Box3 reachBox(const Coord& origin) const { return blockBox(origin, kLeaf, reachGrow()); }
 
@@ -228,35 +230,72 @@ struct DensityRaster::Impl {
         if (!options.surfaceOnly) {
             for (auto it = leaf->beginValueAll(); it; ++it) setExact(it.getCoord());
         } else {
-            // The leaf is cut into 2³ blocks, each decided from the scene's bounds over the block
+            // The leaf is cut into 4³ blocks, each decided from the scene's bounds over the block
             // grown by one voxel — a ball around its centre, from one distance per primitive (the
-            // distance is 1-Lipschitz). A block evaluated exactly is one the surface may pass within
-            // a voxel of; every other voxel has all its 26 neighbours on its own side, so no lattice
-            // cell the surface crosses has it as a corner, and its side (1, or background) is all a
-            // mesher reads. The band evaluated is a few voxels thick instead of a leaf's width.
+            // distance is 1-Lipschitz). In a block the surface may pass within a voxel of, each
+            // voxel is decided again from the bounds over its own 3³ neighbourhood, which the
+            // anchors found by those distances give without a root (densityBoundsNear): only
+            // voxels whose neighbourhood may straddle 0.5 are evaluated. Every other voxel has all
+            // its 26 neighbours on its own side, so no lattice cell the surface crosses has it as
+            // a corner, and its side (1, or background) is all a mesher reads. The band evaluated
+            // is a voxel or two thick instead of a leaf's width.
             const double radius = 0.5 * std::sqrt(3.0) * (kBlock + 1) * h();
+            std::vector<DensityAnchor> anchors(among.size()), removedAnchors(removed.size()), addedAnchors(added.size());
+            auto anchorAll = [&](const Vec3d& centre) {
+                for (std::size_t q = 0; q < among.size(); ++q) anchors[q] = scene.anchorAround(among[q], centre, radius);
+            };
             int index = 0;
             for (int i = 0; i < kLeaf; i += kBlock)
                 for (int j = 0; j < kLeaf; j += kBlock)
                     for (int k = 0; k < kLeaf; k += kBlock, ++index) {
                         const Coord b = origin.offsetBy(i, j, k);
                         const Vec3d centre = (Vec3d(b.x(), b.y(), b.z()) + Vec3d(0.5, 0.5, 0.5) * (kBlock - 1)) * h();
+                        // Summed afresh, every primitive here needs its anchor; corrected, only the changed ones.
                         FixedInterval bounds;
                         if (prev) {
                             bounds = prev->blocks[index];
-                            for (std::uint32_t q : removed) bounds -= change->before->contributionBoundsAround(q, centre, radius);
-                            for (std::uint32_t q : added) bounds += scene.contributionBoundsAround(q, centre, radius);
+                            for (std::size_t q = 0; q < removed.size(); ++q) {
+                                removedAnchors[q] = change->before->anchorAround(removed[q], centre, radius);
+                                bounds -= change->before->contributionBounds(removed[q], removedAnchors[q]);
+                            }
+                            for (std::size_t q = 0; q < added.size(); ++q) {
+                                addedAnchors[q] = scene.anchorAround(added[q], centre, radius);
+                                bounds += scene.contributionBounds(added[q], addedAnchors[q]);
+                            }
                         } else {
-                            for (std::uint32_t q : among) bounds += scene.contributionBoundsAround(q, centre, radius);
+                            anchorAll(centre);
+                            for (std::size_t q = 0; q < among.size(); ++q) bounds += scene.contributionBounds(among[q], anchors[q]);
                         }
                         if (out) out->blocks[index] = bounds;
                         const Fill f = decide(bounds);
+                        if (f == Fill::Empty) continue;
+                        // The voxels' own bounds are kept only for blocks that were exact.
+                        const bool correctVoxels = prev && decide(prev->blocks[index]) == Fill::Exact;
+                        if (f == Fill::Exact && prev && !correctVoxels) anchorAll(centre);
                         for (int a = 0; a < kBlock; ++a)
                             for (int c = 0; c < kBlock; ++c)
                                 for (int d = 0; d < kBlock; ++d) {
                                     const Coord ijk = b.offsetBy(a, c, d);
-                                    if (f == Fill::Exact) setExact(ijk);
-                                    else if (f == Fill::Full) {
+                                    Fill g = f;
+                                    if (f == Fill::Exact) {
+                                        const Vec3d p = Vec3d(ijk.x(), ijk.y(), ijk.z()) * h();
+                                        const auto n = LeafT::coordToOffset(ijk);
+                                        FixedInterval near;
+                                        if (correctVoxels) {
+                                            near = prev->voxelBounds[n];
+                                            for (std::size_t q = 0; q < removed.size(); ++q)
+                                                near -= change->before->contributionBoundsNear(removed[q], removedAnchors[q], p, h());
+                                            for (std::size_t q = 0; q < added.size(); ++q)
+                                                near += scene.contributionBoundsNear(added[q], addedAnchors[q], p, h());
+                                        } else {
+                                            for (std::size_t q = 0; q < among.size(); ++q)
+                                                near += scene.contributionBoundsNear(among[q], anchors[q], p, h());
+                                        }
+                                        if (out) out->voxelBounds[n] = near;
+                                        g = decide(near);
+                                    }
+                                    if (g == Fill::Exact) setExact(ijk);
+                                    else if (g == Fill::Full) {
                                         leaf->setValueOn(ijk, 1.0f);
                                         any = true;
                                     }

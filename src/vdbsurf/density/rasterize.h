@@ -6,9 +6,10 @@
 // (so the work follows the surface, not the volume): no density → background (no work);
 // density 1 throughout → constant tiles (no per-voxel work; a 128³ node becomes one tile);
 // otherwise a leaf's voxels are evaluated, only for the primitives that reach the leaf. With
-// surfaceOnly, a leaf is decided per 2³ block and only blocks the 0.5 surface can pass within
-// one voxel of are evaluated; the rest are filled by side (1 inside, background outside),
-// which is all a mesher needs. Each block's decision depends only on the primitives that reach
+// surfaceOnly, a leaf is decided per 4³ block, and in blocks the 0.5 surface can pass within
+// one voxel of, per voxel: only voxels whose 3³ neighbourhood the surface may cross are
+// evaluated; the rest are filled by side (1 inside, background outside), which is all a mesher
+// needs. Each block's decision depends only on the primitives that reach
 // it, and sums are exact fixed-point integers, so an edit redecides only the blocks and leaves
 // the changed primitives reach before or after — with keepSums, correcting each stored sum by
 // those primitives alone — and equals a full rebuild voxel for voxel.
@@ -26,8 +27,9 @@ class CancelToken;
 struct RasterOptions {
     double voxelSize = 0;
     bool surfaceOnly = false;
-    // Keep each evaluated voxel's fixed-point sum (8 bytes a voxel, as long as the raster lives)
-    // so that update() corrects it by the changed primitives alone instead of summing them all.
+    // Keep each evaluated voxel's fixed-point sum (and, surface-only, the bounds that decided it:
+    // 13 KB an exact leaf, as long as the raster lives) so that update() corrects them by the
+    // changed primitives alone instead of summing them all.
     bool keepSums = false;
     // Bytes of leaf values a build may hold before it stops with an Error naming --voxel-size (an
     // edit: new leaves, naming the scene); 0: 80 % of the memory free when the build or edit

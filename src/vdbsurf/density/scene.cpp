@@ -85,6 +85,16 @@ FixedInterval DensityScene::contributionBoundsAround(std::uint32_t i, const Vec3
     return signedFixedBounds(lo, hi, mPrimitives[i].op);
 }
 
+FixedInterval DensityScene::contributionBounds(std::uint32_t i, const DensityAnchor& a) const {
+    return signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
+}
+
+FixedInterval DensityScene::contributionBoundsNear(std::uint32_t i, const DensityAnchor& a, const Vec3d& v, double halfWidth) const {
+    double lo, hi;
+    mPrepared[i].densityBoundsNear(a, v, halfWidth, lo, hi);
+    return signedFixedBounds(lo, hi, mPrimitives[i].op);
+}
+
 double DensityScene::value(const Vec3d& p) const { return clampDensity(sum(p)); }
 
 Vec3d DensityScene::gradient(const Vec3d& p) const {

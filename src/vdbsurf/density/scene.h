@@ -66,6 +66,13 @@ public:
     FixedDensity contribution(std::uint32_t i, const Vec3d& p) const;
     FixedDensity fixedSum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
     FixedInterval contributionBoundsAround(std::uint32_t i, const Vec3d& centre, double radius) const;
+    // The same from primitive i's anchor there (PreparedPrimitive::anchorAround), and its bounds
+    // over a cube v ± halfWidth inside that ball.
+    DensityAnchor anchorAround(std::uint32_t i, const Vec3d& centre, double radius) const {
+        return mPrepared[i].anchorAround(centre, radius);
+    }
+    FixedInterval contributionBounds(std::uint32_t i, const DensityAnchor& anchor) const;
+    FixedInterval contributionBoundsNear(std::uint32_t i, const DensityAnchor& anchor, const Vec3d& v, double halfWidth) const;
 
     // Scans every primitive instead of asking the index (same results, slower): for tests and
     // benchmarks that compare the two.
