@@ -277,20 +277,41 @@ DensityAnchor PreparedPrimitive::anchorAround(const Vec3d& c, double radius) con
 }
 
 void PreparedPrimitive::densityBoundsNear(const DensityAnchor& a, const Vec3d& v, double e, double& lo, double& hi) const {
-    // The cube lies in the anchor's ball (the caller's promise), so the ball's bounds hold too.
-    lo = a.lo;
-    hi = a.hi;
-    if (!a.hasNormal || !(lo < hi)) return;
-    const Vec3d r = v - a.closest;
-    const double len = length(r);
-    // Rounding in the closest point, the normal and these sums is ~1e-15 of the lengths involved.
-    const double slack = 1e-9 * (len + mMaxRadius) + 1e-14 * (std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z));
-    const Vec3d& n = a.normal;
-    const double nearest = dot(n, r) - e * (std::fabs(n.x) + std::fabs(n.y) + std::fabs(n.z)); // the plane's distance, over the cube
-    const double dmin = std::max(0.0, nearest - slack);
-    const double dmax = len + std::sqrt(3.0) * e + slack;
-    lo = std::max(lo, mP.weight * falloffValue(dmax / mP.falloff));
-    hi = std::min(hi, mP.weight * falloffValue(dmin / mP.falloff));
+    densityBoundsNearBlock(a, v, 0, 1, e, &lo, &hi);
+}
+
+void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec3d& first, double step, int n, double e, double* lo,
+                                               double* hi) const {
+    // The cubes lie in the anchor's ball (the caller's promise), so the ball's bounds hold too.
+    const int count = n * n * n;
+    if (!a.hasNormal || !(a.lo < a.hi)) {
+        std::fill(lo, lo + count, a.lo);
+        std::fill(hi, hi + count, a.hi);
+        return;
+    }
+    const Vec3d& nrm = a.normal;
+    const double spread = e * (std::fabs(nrm.x) + std::fabs(nrm.y) + std::fabs(nrm.z)); // the plane's distance varies this much over a cube
+    const double corner = std::sqrt(3.0) * e;
+    const double invFalloff = 1.0 / mP.falloff;
+    // The falloff without branches (the same values as falloffValue: t is clamped to [0, 1]).
+    auto falloff = [](double t) {
+        t = std::min(std::max(t, 0.0), 1.0);
+        return 1.0 - t * t * (3.0 - 2.0 * t);
+    };
+    int index = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j)
+            for (int k = 0; k < n; ++k, ++index) {
+                const Vec3d v = first + Vec3d(i, j, k) * step;
+                const Vec3d r = v - a.closest;
+                const double len = length(r);
+                // Rounding in the closest point, the normal and these sums is ~1e-15 of the lengths involved.
+                const double slack = 1e-9 * (len + mMaxRadius) + 1e-14 * (std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z));
+                const double dmin = dot(nrm, r) - spread - slack;
+                const double dmax = len + corner + slack;
+                lo[index] = std::max(a.lo, mP.weight * falloff(dmax * invFalloff));
+                hi[index] = std::min(a.hi, mP.weight * falloff(dmin * invFalloff));
+            }
 }
 
 } // namespace vdbsurf

@@ -76,6 +76,9 @@ public:
     // bounds over a cube v ± halfWidth inside the ball from the anchor alone — a few flops, no root.
     DensityAnchor anchorAround(const Vec3d& centre, double radius) const;
     void densityBoundsNear(const DensityAnchor& anchor, const Vec3d& v, double halfWidth, double& lo, double& hi) const;
+    // The same for the n³ cubes centred at first + step·(i, j, k), k fastest, into lo[] and hi[].
+    void densityBoundsNearBlock(const DensityAnchor& anchor, const Vec3d& first, double step, int n, double halfWidth, double* lo,
+                                double* hi) const;
 
     // Where the density can be non-zero (core grown by the falloff), and the core's own box.
     const Box3& influenceBox() const { return mInfluence; }

@@ -35,7 +35,7 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // leaves asked for bounds follow the surface instead of filling every node it passes through.
 constexpr int kLeaf = 8, kNode = 128;
 // Surface-only leaves are decided per 4³ block, then voxel by voxel in blocks the surface may pass.
-constexpr int kBlock = 4, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
+constexpr int kBlock = DensityScene::kNearBlock, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
 
 enum class Fill { Empty, Full, Exact };
 
@@ -269,31 +269,38 @@ struct DensityRaster::Impl {
                         if (out) out->blocks[index] = bounds;
                         const Fill f = decide(bounds);
                         if (f == Fill::Empty) continue;
-                        // The voxels' own bounds are kept only for blocks that were exact.
+                        if (f == Fill::Full) {
+                            for (int a = 0; a < kBlock; ++a)
+                                for (int c = 0; c < kBlock; ++c)
+                                    for (int d = 0; d < kBlock; ++d) leaf->setValueOn(b.offsetBy(a, c, d), 1.0f);
+                            any = true;
+                            continue;
+                        }
+                        // Each voxel's bounds over its 3³ neighbourhood; kept only for blocks that were exact.
                         const bool correctVoxels = prev && decide(prev->blocks[index]) == Fill::Exact;
-                        if (f == Fill::Exact && prev && !correctVoxels) anchorAll(centre);
+                        std::array<FixedInterval, kBlock * kBlock * kBlock> near{};
+                        const Vec3d first = Vec3d(b.x(), b.y(), b.z()) * h();
+                        if (correctVoxels) {
+                            int v = 0;
+                            for (int a = 0; a < kBlock; ++a)
+                                for (int c = 0; c < kBlock; ++c)
+                                    for (int d = 0; d < kBlock; ++d) near[v++] = prev->voxelBounds[LeafT::coordToOffset(b.offsetBy(a, c, d))];
+                            for (std::size_t q = 0; q < removed.size(); ++q)
+                                change->before->accumulateBoundsNear(removed[q], removedAnchors[q], first, h(), true, near.data());
+                            for (std::size_t q = 0; q < added.size(); ++q)
+                                scene.accumulateBoundsNear(added[q], addedAnchors[q], first, h(), false, near.data());
+                        } else {
+                            if (prev) anchorAll(centre);
+                            for (std::size_t q = 0; q < among.size(); ++q)
+                                scene.accumulateBoundsNear(among[q], anchors[q], first, h(), false, near.data());
+                        }
+                        int v = 0;
                         for (int a = 0; a < kBlock; ++a)
                             for (int c = 0; c < kBlock; ++c)
-                                for (int d = 0; d < kBlock; ++d) {
+                                for (int d = 0; d < kBlock; ++d, ++v) {
                                     const Coord ijk = b.offsetBy(a, c, d);
-                                    Fill g = f;
-                                    if (f == Fill::Exact) {
-                                        const Vec3d p = Vec3d(ijk.x(), ijk.y(), ijk.z()) * h();
-                                        const auto n = LeafT::coordToOffset(ijk);
-                                        FixedInterval near;
-                                        if (correctVoxels) {
-                                            near = prev->voxelBounds[n];
-                                            for (std::size_t q = 0; q < removed.size(); ++q)
-                                                near -= change->before->contributionBoundsNear(removed[q], removedAnchors[q], p, h());
-                                            for (std::size_t q = 0; q < added.size(); ++q)
-                                                near += scene.contributionBoundsNear(added[q], addedAnchors[q], p, h());
-                                        } else {
-                                            for (std::size_t q = 0; q < among.size(); ++q)
-                                                near += scene.contributionBoundsNear(among[q], anchors[q], p, h());
-                                        }
-                                        if (out) out->voxelBounds[n] = near;
-                                        g = decide(near);
-                                    }
+                                    if (out) out->voxelBounds[LeafT::coordToOffset(ijk)] = near[v];
+                                    const Fill g = decide(near[v]);
                                     if (g == Fill::Exact) setExact(ijk);
                                     else if (g == Fill::Full) {
                                         leaf->setValueOn(ijk, 1.0f);

@@ -72,7 +72,12 @@ public:
         return mPrepared[i].anchorAround(centre, radius);
     }
     FixedInterval contributionBounds(std::uint32_t i, const DensityAnchor& anchor) const;
-    FixedInterval contributionBoundsNear(std::uint32_t i, const DensityAnchor& anchor, const Vec3d& v, double halfWidth) const;
+    // Adds primitive i's signed bounds near each voxel of the 4³ block whose first voxel centre is
+    // `first` (voxels `step` apart, z fastest), over the voxel's 3³ neighbourhood, to sums[] — or
+    // takes them out of it (an edit's old primitive). The anchor is the block's (its ball holds them).
+    static constexpr int kNearBlock = 4;
+    void accumulateBoundsNear(std::uint32_t i, const DensityAnchor& anchor, const Vec3d& first, double step, bool takeOut,
+                              FixedInterval* sums) const;
 
     // Scans every primitive instead of asking the index (same results, slower): for tests and
     // benchmarks that compare the two.
