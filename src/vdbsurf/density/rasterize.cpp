@@ -41,13 +41,11 @@ enum class Fill { Empty, Full, Exact };
 
 // What an edit needs to update an exact leaf without summing every primitive again: the
 // fixed-point sum at each voxel that was evaluated and, in surface-only mode, each 4³ block's
-// bound sums and, in the blocks those leave exact, each voxel's bound sums over its 3³
-// neighbourhood (which together decide which voxels are evaluated).
+// bound sums (which decide which blocks are looked at voxel by voxel).
 struct LeafSums {
     std::array<FixedDensity, LeafT::SIZE> voxel{};
     std::bitset<LeafT::SIZE> known;
     std::array<FixedInterval, kBlocksPerLeaf> blocks{};
-    std::array<FixedInterval, LeafT::SIZE> voxelBounds{};
 };
 
 struct LeafResult {
@@ -276,30 +274,18 @@ struct DensityRaster::Impl {
                             any = true;
                             continue;
                         }
-                        // Each voxel's bounds over its 3³ neighbourhood; kept only for blocks that were exact.
-                        const bool correctVoxels = prev && decide(prev->blocks[index]) == Fill::Exact;
+                        // Each voxel's bounds over its 3³ neighbourhood, from every primitive here (not kept:
+                        // an edit's anchors for the unchanged ones cost less than 8 KB a leaf of bounds).
                         std::array<FixedInterval, kBlock * kBlock * kBlock> near{};
                         const Vec3d first = Vec3d(b.x(), b.y(), b.z()) * h();
-                        if (correctVoxels) {
-                            int v = 0;
-                            for (int a = 0; a < kBlock; ++a)
-                                for (int c = 0; c < kBlock; ++c)
-                                    for (int d = 0; d < kBlock; ++d) near[v++] = prev->voxelBounds[LeafT::coordToOffset(b.offsetBy(a, c, d))];
-                            for (std::size_t q = 0; q < removed.size(); ++q)
-                                change->before->accumulateBoundsNear(removed[q], removedAnchors[q], first, h(), true, near.data());
-                            for (std::size_t q = 0; q < added.size(); ++q)
-                                scene.accumulateBoundsNear(added[q], addedAnchors[q], first, h(), false, near.data());
-                        } else {
-                            if (prev) anchorAll(centre);
-                            for (std::size_t q = 0; q < among.size(); ++q)
-                                scene.accumulateBoundsNear(among[q], anchors[q], first, h(), false, near.data());
-                        }
+                        if (prev) anchorAll(centre);
+                        for (std::size_t q = 0; q < among.size(); ++q)
+                            scene.accumulateBoundsNear(among[q], anchors[q], first, h(), near.data());
                         int v = 0;
                         for (int a = 0; a < kBlock; ++a)
                             for (int c = 0; c < kBlock; ++c)
                                 for (int d = 0; d < kBlock; ++d, ++v) {
                                     const Coord ijk = b.offsetBy(a, c, d);
-                                    if (out) out->voxelBounds[LeafT::coordToOffset(ijk)] = near[v];
                                     const Fill g = decide(near[v]);
                                     if (g == Fill::Exact) setExact(ijk);
                                     else if (g == Fill::Full) {

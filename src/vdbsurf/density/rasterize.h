@@ -27,9 +27,8 @@ class CancelToken;
 struct RasterOptions {
     double voxelSize = 0;
     bool surfaceOnly = false;
-    // Keep each evaluated voxel's fixed-point sum (and, surface-only, the bounds that decided it:
-    // 13 KB an exact leaf, as long as the raster lives) so that update() corrects them by the
-    // changed primitives alone instead of summing them all.
+    // Keep each evaluated voxel's fixed-point sum (8 bytes a voxel, as long as the raster lives)
+    // so that update() corrects it by the changed primitives alone instead of summing them all.
     bool keepSums = false;
     // Bytes of leaf values a build may hold before it stops with an Error naming --voxel-size (an
     // edit: new leaves, naming the scene); 0: 80 % of the memory free when the build or edit
