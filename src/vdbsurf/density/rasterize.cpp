@@ -41,11 +41,18 @@ enum class Fill { Empty, Full, Exact };
 
 // What an edit needs to update an exact leaf without summing every primitive again: the
 // fixed-point sum at each voxel that was evaluated and, in surface-only mode, each 4³ block's
-// bound sums (which decide which blocks are looked at voxel by voxel).
+// bound sums and, for the blocks those left exact, each voxel's bound sums over its 3³
+// neighbourhood (which together decide which voxels are evaluated). Those are kept only for
+// exact blocks (1 KB each): with many primitives, correcting them by the changed ones is far
+// cheaper than an anchor of every primitive again.
 struct LeafSums {
+    static constexpr int kBlockVoxels = kBlock * kBlock * kBlock;
     std::array<FixedDensity, LeafT::SIZE> voxel{};
     std::bitset<LeafT::SIZE> known;
     std::array<FixedInterval, kBlocksPerLeaf> blocks{};
+    std::array<std::int16_t, kBlocksPerLeaf> boundsAt; // where a block's voxel bounds start in voxelBounds (-1: none)
+    std::vector<FixedInterval> voxelBounds;
+    LeafSums() { boundsAt.fill(-1); }
 };
 
 struct LeafResult {
@@ -118,8 +125,10 @@ struct DensityRaster::Impl {
     void checkMemory(std::uint64_t pending = 0, bool editing = false) const {
         if (memoryBudget <= 0) return;
         // A leaf node holds its values on the heap, apart from the node itself.
+        // Kept sums: surface-only voxel bounds counted as if every block of the leaf were exact.
+        const double keptBounds = options.surfaceOnly ? double(LeafT::SIZE * sizeof(FixedInterval)) : 0.0;
         const double perLeaf = double(sizeof(LeafT) + LeafT::SIZE * sizeof(float)) +
-                               (options.keepSums ? double(sizeof(LeafSums)) : 0.0);
+                               (options.keepSums ? double(sizeof(LeafSums)) + keptBounds : 0.0);
         const std::uint64_t leaves = stats.leavesEvaluated + pending;
         const double used = double(leaves) * perLeaf;
         if (used <= memoryBudget) return;
@@ -274,13 +283,24 @@ struct DensityRaster::Impl {
                             any = true;
                             continue;
                         }
-                        // Each voxel's bounds over its 3³ neighbourhood, from every primitive here (not kept:
-                        // an edit's anchors for the unchanged ones cost less than 8 KB a leaf of bounds).
-                        std::array<FixedInterval, kBlock * kBlock * kBlock> near{};
+                        // Each voxel's bounds over its 3³ neighbourhood: corrected where they were kept.
+                        std::array<FixedInterval, LeafSums::kBlockVoxels> near{};
                         const Vec3d first = Vec3d(b.x(), b.y(), b.z()) * h();
-                        if (prev) anchorAll(centre);
-                        for (std::size_t q = 0; q < among.size(); ++q)
-                            scene.accumulateBoundsNear(among[q], anchors[q], first, h(), near.data());
+                        if (prev && prev->boundsAt[index] >= 0) {
+                            std::copy_n(prev->voxelBounds.begin() + prev->boundsAt[index] * LeafSums::kBlockVoxels, near.size(), near.begin());
+                            for (std::size_t q = 0; q < removed.size(); ++q)
+                                change->before->accumulateBoundsNear(removed[q], removedAnchors[q], first, h(), true, near.data());
+                            for (std::size_t q = 0; q < added.size(); ++q)
+                                scene.accumulateBoundsNear(added[q], addedAnchors[q], first, h(), false, near.data());
+                        } else {
+                            if (prev) anchorAll(centre);
+                            for (std::size_t q = 0; q < among.size(); ++q)
+                                scene.accumulateBoundsNear(among[q], anchors[q], first, h(), false, near.data());
+                        }
+                        if (out) {
+                            out->boundsAt[index] = std::int16_t(out->voxelBounds.size() / LeafSums::kBlockVoxels);
+                            out->voxelBounds.insert(out->voxelBounds.end(), near.begin(), near.end());
+                        }
                         int v = 0;
                         for (int a = 0; a < kBlock; ++a)
                             for (int c = 0; c < kBlock; ++c)

@@ -89,13 +89,13 @@ FixedInterval DensityScene::contributionBounds(std::uint32_t i, const DensityAnc
     return signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
 }
 
-void DensityScene::accumulateBoundsNear(std::uint32_t i, const DensityAnchor& a, const Vec3d& first, double step,
+void DensityScene::accumulateBoundsNear(std::uint32_t i, const DensityAnchor& a, const Vec3d& first, double step, bool takeOut,
                                         FixedInterval* sums) const {
     constexpr int n = kNearBlock, count = n * n * n;
     if (!a.hasNormal || !(a.lo < a.hi)) { // the same bounds over the whole ball
-        FixedInterval b = signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
+        const FixedInterval b = signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
         if (b.lo == 0 && b.hi == 0) return;
-        for (int k = 0; k < count; ++k) sums[k] += b;
+        for (int k = 0; k < count; ++k) takeOut ? sums[k] -= b : sums[k] += b;
         return;
     }
     double lo[count], hi[count];
@@ -104,7 +104,8 @@ void DensityScene::accumulateBoundsNear(std::uint32_t i, const DensityAnchor& a,
     const bool add = mPrimitives[i].op == DensityOp::Add;
     for (int k = 0; k < count; ++k) {
         const FixedDensity l = FixedDensity(lo[k] * kFixedPerUnit) - 1, h = FixedDensity(hi[k] * kFixedPerUnit) + 1;
-        sums[k] += add ? FixedInterval{l, h} : FixedInterval{-h, -l};
+        const FixedInterval b = add ? FixedInterval{l, h} : FixedInterval{-h, -l};
+        takeOut ? sums[k] -= b : sums[k] += b;
     }
 }
 
