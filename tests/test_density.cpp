@@ -220,13 +220,19 @@ TEST_CASE("a primitive's bounds from one distance contain its density over cubes
             pp.densityBoundsAround(c, radius, blo, bhi);
             REQUIRE(blo == a.lo);
             REQUIRE(bhi == a.hi);
-            const double e = radius / 2 * t(rng) / std::sqrt(3.0); // the cube's half width; its centre within radius / 2
+            // A cube, or cubes on v and its axis neighbours (half the tests), within radius / 2 of v,
+            // and v within radius / 2 of c.
+            Neighbourhood around;
+            around.halfWidth = radius / 2 * t(rng) / std::sqrt(6.0);
+            around.shift = i % 2 ? around.halfWidth : 0.0;
             Vec3d off(sym(rng), sym(rng), sym(rng));
             const Vec3d v = c + off * (radius / 2 / std::max(1e-9, length(off)) * t(rng));
             double lo, hi;
-            pp.densityBoundsNear(a, v, e, lo, hi);
+            pp.densityBoundsNear(a, v, around, lo, hi);
             for (int k = 0; k < 40; ++k) {
-                const Vec3d p = v + Vec3d(sym(rng), sym(rng), sym(rng)) * e;
+                Vec3d p = v + Vec3d(sym(rng), sym(rng), sym(rng)) * around.halfWidth;
+                p[k % 3] += around.shift * double(k % 3 - 1); // on v, or shifted to an axis neighbour
+                if (k % 5 == 0) p = v + Vec3d(k % 2 ? 1 : -1, 1, -1) * around.halfWidth + Vec3d(around.shift, 0, 0); // a far corner
                 const double d = pp.density(p);
                 CHECK(d >= lo);
                 CHECK(d <= hi);
@@ -449,9 +455,9 @@ TEST_CASE("surface-only rasterization: exact near the surface, right side elsewh
         for (auto c = bb.begin(); c; ++c) wrongSide += (*it > 0.5f) != (accB.getValue(*c) > 0.5f);
     }
     CHECK(wrongSide == 0);
-    // Every voxel left inexact has all 26 neighbours on its own side: each lattice cell the
-    // surface crosses has exact values at all 8 corners (what marching cubes and DMC's thin
-    // search interpolate).
+    // Every voxel left inexact has its own 3³ block and its axis neighbours' on its own side: each
+    // lattice cell the surface crosses has exact values at its 8 corners (what marching cubes and
+    // DMC's thin search interpolate) and at their axis neighbours (DMC's central differences).
     auto accA = ga->getConstAccessor();
     std::size_t inexact = 0, inexactNearSurface = 0, nearSurface = 0;
     for (auto it = ga->cbeginValueOn(); it; ++it) {
@@ -460,9 +466,11 @@ TEST_CASE("surface-only rasterization: exact near the surface, right side elsewh
         for (auto c = bb.begin(); c; ++c) {
             const bool side = *it > 0.5f;
             bool other = false;
-            for (int i = -1; i <= 1; ++i)
-                for (int j = -1; j <= 1; ++j)
-                    for (int k = -1; k <= 1; ++k) other = other || (accA.getValue((*c).offsetBy(i, j, k)) > 0.5f) != side;
+            for (int i = -2; i <= 2; ++i)
+                for (int j = -2; j <= 2; ++j)
+                    for (int k = -2; k <= 2; ++k)
+                        if ((std::abs(i) == 2) + (std::abs(j) == 2) + (std::abs(k) == 2) <= 1)
+                            other = other || (accA.getValue((*c).offsetBy(i, j, k)) > 0.5f) != side;
             nearSurface += other;
             if (accB.getValue(*c) == *it) continue;
             ++inexact;
@@ -472,15 +480,27 @@ TEST_CASE("surface-only rasterization: exact near the surface, right side elsewh
     CHECK(inexact > 0);
     CHECK(inexactNearSurface == 0);
     // Voxels are decided one by one where the surface passes, so the voxels evaluated are close
-    // to the least possible: those with a neighbour across the surface (1.23 here; evaluating whole 4³ blocks: 3.2×).
-    INFO("evaluated " << b.stats().voxelsEvaluated << ", with a neighbour across " << nearSurface);
+    // to the least possible: those with a voxel across the surface in that neighbourhood (1.21 here;
+    // evaluating whole 4³ blocks: 2.2×).
+    INFO("evaluated " << b.stats().voxelsEvaluated << ", with a voxel across in the neighbourhood " << nearSurface);
     CHECK(double(b.stats().voxelsEvaluated) < 1.3 * double(nearSurface));
-    // Marching cubes at the voxel size sees only values next to the surface: identical meshes.
+    // Marching cubes and DMC at the voxel size see only values next to the surface: identical meshes.
+    for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
+        MeshRequest req;
+        req.method = method;
+        MeshReport ra, rb;
+        const Mesh ma = meshField(GridField(a.grid(), "full"), req, ra);
+        const Mesh mb = meshField(GridField(b.grid(), "surface only"), req, rb);
+        CHECK(ma.points == mb.points);
+        CHECK(ma.indices == mb.indices);
+    }
+    // At 0.013 DMC's central differences read voxels whose own 3³ block the surface does not
+    // cross (the mesh differs when only those blocks decide).
+    full.voxelSize = surf.voxelSize = 0.013;
     MeshRequest req;
-    req.method = MeshMethod::MarchingCubes;
     MeshReport ra, rb;
-    const Mesh ma = meshField(GridField(a.grid(), "full"), req, ra);
-    const Mesh mb = meshField(GridField(b.grid(), "surface only"), req, rb);
+    const Mesh ma = meshField(GridField(DensityRaster(scene, full).grid(), "full"), req, ra);
+    const Mesh mb = meshField(GridField(DensityRaster(scene, surf).grid(), "surface only"), req, rb);
     CHECK(ma.points == mb.points);
     CHECK(ma.indices == mb.indices);
 }

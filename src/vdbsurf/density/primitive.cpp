@@ -276,13 +276,14 @@ DensityAnchor PreparedPrimitive::anchorAround(const Vec3d& c, double radius) con
     return a;
 }
 
-void PreparedPrimitive::densityBoundsNear(const DensityAnchor& a, const Vec3d& v, double e, double& lo, double& hi) const {
-    densityBoundsNearBlock(a, v, 0, 1, e, &lo, &hi);
+void PreparedPrimitive::densityBoundsNear(const DensityAnchor& a, const Vec3d& v, const Neighbourhood& around, double& lo,
+                                          double& hi) const {
+    densityBoundsNearBlock(a, v, 0, 1, around, &lo, &hi);
 }
 
-void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec3d& first, double step, int n, double e, double* lo,
-                                               double* hi) const {
-    // The cubes lie in the anchor's ball (the caller's promise), so the ball's bounds hold too.
+void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec3d& first, double step, int n,
+                                               const Neighbourhood& around, double* lo, double* hi) const {
+    // The neighbourhoods lie in the anchor's ball (the caller's promise), so the ball's bounds hold too.
     const int count = n * n * n;
     if (!a.hasNormal || !(a.lo < a.hi)) {
         std::fill(lo, lo + count, a.lo);
@@ -290,8 +291,12 @@ void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec
         return;
     }
     const Vec3d& nrm = a.normal;
-    const double spread = e * (std::fabs(nrm.x) + std::fabs(nrm.y) + std::fabs(nrm.z)); // the plane's distance varies this much over a cube
-    const double corner = std::sqrt(3.0) * e;
+    const double e = around.halfWidth, s = around.shift;
+    // Over the neighbourhood, the plane's distance n·(p − x) falls at most this far below its value
+    // at the centre, and |p − x| rises at most `corner` (the farthest point: a cube's corner, shifted).
+    const double spread = e * (std::fabs(nrm.x) + std::fabs(nrm.y) + std::fabs(nrm.z)) +
+                          s * std::max({std::fabs(nrm.x), std::fabs(nrm.y), std::fabs(nrm.z)});
+    const double corner = std::sqrt(3.0 * e * e + 2.0 * e * s + s * s);
     const double invFalloff = 1.0 / mP.falloff;
     // The falloff without branches (the same values as falloffValue: t is clamped to [0, 1]).
     auto falloff = [](double t) {

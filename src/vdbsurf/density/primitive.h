@@ -42,6 +42,14 @@ struct DensityAnchor {
     Vec3d closest, normal;
 };
 
+// The points around v that a bound covers: the cubes of half width halfWidth centred at v and at
+// v ± shift along each axis (shift 0: one cube). A voxel whose 3³ block the surface crosses is a
+// corner of a crossed lattice cell; with shift one voxel, its axis neighbours' blocks too, whose
+// central differences read it.
+struct Neighbourhood {
+    double halfWidth = 0, shift = 0;
+};
+
 // A primitive prepared for evaluation: its rotation as a matrix and its bounding boxes.
 class PreparedPrimitive {
 public:
@@ -73,12 +81,12 @@ public:
     // The same over a ball, from the centre's distance alone: cheaper and looser, for small blocks.
     void densityBoundsAround(const Vec3d& centre, double radius, double& lo, double& hi) const;
     // That ball's bounds and what the centre's distance found on the way (anchorAround), and then
-    // bounds over a cube v ± halfWidth inside the ball from the anchor alone — a few flops, no root.
+    // bounds over a neighbourhood of v inside the ball from the anchor alone — a few flops, no root.
     DensityAnchor anchorAround(const Vec3d& centre, double radius) const;
-    void densityBoundsNear(const DensityAnchor& anchor, const Vec3d& v, double halfWidth, double& lo, double& hi) const;
-    // The same for the n³ cubes centred at first + step·(i, j, k), k fastest, into lo[] and hi[].
-    void densityBoundsNearBlock(const DensityAnchor& anchor, const Vec3d& first, double step, int n, double halfWidth, double* lo,
-                                double* hi) const;
+    void densityBoundsNear(const DensityAnchor& anchor, const Vec3d& v, const Neighbourhood& around, double& lo, double& hi) const;
+    // The same for the n³ points first + step·(i, j, k), k fastest, into lo[] and hi[].
+    void densityBoundsNearBlock(const DensityAnchor& anchor, const Vec3d& first, double step, int n, const Neighbourhood& around,
+                                double* lo, double* hi) const;
 
     // Where the density can be non-zero (core grown by the falloff), and the core's own box.
     const Box3& influenceBox() const { return mInfluence; }

@@ -34,14 +34,16 @@ double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::
 // Blocks are decided whole before their leaves: a node, then halves of it down to 16³, so the
 // leaves asked for bounds follow the surface instead of filling every node it passes through.
 constexpr int kLeaf = 8, kNode = 128;
-// Surface-only leaves are decided per 4³ block, then voxel by voxel in blocks the surface may pass.
+// Surface-only leaves are decided per 4³ block, then voxel by voxel in blocks the surface may
+// pass within the halo of (what a voxel's value can matter to: kHalo steps).
 constexpr int kBlock = DensityScene::kNearBlock, kBlocksPerLeaf = (kLeaf / kBlock) * (kLeaf / kBlock) * (kLeaf / kBlock);
+constexpr int kHalo = 2;
 
 enum class Fill { Empty, Full, Exact };
 
 // What an edit needs to update an exact leaf without summing every primitive again: the
 // fixed-point sum at each voxel that was evaluated and, in surface-only mode, each 4³ block's
-// bound sums and, for the blocks those left exact, each voxel's bound sums over its 3³
+// bound sums and, for the blocks those left exact, each voxel's bound sums over its
 // neighbourhood (which together decide which voxels are evaluated). Those are kept only for
 // exact blocks (1 KB each): with many primitives, correcting them by the changed ones is far
 // cheaper than an anchor of every primitive again.
@@ -160,9 +162,12 @@ struct DensityRaster::Impl {
                 Vec3d(origin.x() + n - 1 + grow, origin.y() + n - 1 + grow, origin.z() + n - 1 + grow) * h()};
     }
 
-    // Everything a leaf's rule reads lies in its reach: the leaf itself in full mode; in
-    // surface-only mode the balls around its blocks (below), which reach 2.9 voxels past it.
-    int reachGrow() const { return options.surfaceOnly ? 3 : 0; }
+    // Everything a leaf's values depend on lies in its reach: the leaf itself in full mode; in
+    // surface-only mode the leaf grown by the halo. Only primitives that reach it take part in the
+    // leaf's rule (among, below); their bounds over the balls around its blocks, which reach past
+    // it, are looser than over the reach but as valid, and a function of those primitives alone,
+    // so an edit and a rebuild still agree on every leaf.
+    int reachGrow() const { return options.surfaceOnly ? kHalo : 0; }
     Box3 reachBox(const Coord& origin) const { return blockBox(origin, kLeaf, reachGrow()); }
 
     Fill decide(const Interval& b) const {
@@ -238,15 +243,17 @@ struct DensityRaster::Impl {
             for (auto it = leaf->beginValueAll(); it; ++it) setExact(it.getCoord());
         } else {
             // The leaf is cut into 4³ blocks, each decided from the scene's bounds over the block
-            // grown by one voxel — a ball around its centre, from one distance per primitive (the
-            // distance is 1-Lipschitz). In a block the surface may pass within a voxel of, each
-            // voxel is decided again from the bounds over its own 3³ neighbourhood, which the
-            // anchors found by those distances give without a root (densityBoundsNear): only
-            // voxels whose neighbourhood may straddle 0.5 are evaluated. Every other voxel has all
-            // its 26 neighbours on its own side, so no lattice cell the surface crosses has it as
-            // a corner, and its side (1, or background) is all a mesher reads. The band evaluated
-            // is a voxel or two thick instead of a leaf's width.
-            const double radius = 0.5 * std::sqrt(3.0) * (kBlock + 1) * h();
+            // grown by the halo — a ball around its centre, from one distance per primitive (the
+            // distance is 1-Lipschitz). In a block the surface may pass within the halo of, each
+            // voxel is decided again from the bounds over the points a mesher may read it for —
+            // its own 3³ block (is it a corner of a lattice cell the surface crosses: marching
+            // cubes, DMC's thin search) and its axis neighbours' (is it in the central difference
+            // at such a corner: DMC's crossing normals and sharp-feature tests) — which the
+            // anchors found by those distances give without a root (densityBoundsNear). Only
+            // voxels whose neighbourhood may straddle 0.5 are evaluated; every other one is read
+            // for its side alone, 1 or background. The band evaluated is a few voxels thick.
+            const Neighbourhood meshReads{h(), h()}; // the voxel's 3³ block and its axis neighbours'
+            const double radius = 0.5 * std::sqrt(3.0) * (kBlock - 1 + 2 * kHalo) * h(); // holds each voxel ± kHalo
             std::vector<DensityAnchor> anchors(among.size()), removedAnchors(removed.size()), addedAnchors(added.size());
             auto anchorAll = [&](const Vec3d& centre) {
                 for (std::size_t q = 0; q < among.size(); ++q) anchors[q] = scene.anchorAround(among[q], centre, radius);
@@ -283,19 +290,19 @@ struct DensityRaster::Impl {
                             any = true;
                             continue;
                         }
-                        // Each voxel's bounds over its 3³ neighbourhood: corrected where they were kept.
+                        // Each voxel's bounds over its neighbourhood: corrected where they were kept.
                         std::array<FixedInterval, LeafSums::kBlockVoxels> near{};
                         const Vec3d first = Vec3d(b.x(), b.y(), b.z()) * h();
                         if (prev && prev->boundsAt[index] >= 0) {
                             std::copy_n(prev->voxelBounds.begin() + prev->boundsAt[index] * LeafSums::kBlockVoxels, near.size(), near.begin());
                             for (std::size_t q = 0; q < removed.size(); ++q)
-                                change->before->accumulateBoundsNear(removed[q], removedAnchors[q], first, h(), true, near.data());
+                                change->before->accumulateBoundsNear(removed[q], removedAnchors[q], first, h(), meshReads, true, near.data());
                             for (std::size_t q = 0; q < added.size(); ++q)
-                                scene.accumulateBoundsNear(added[q], addedAnchors[q], first, h(), false, near.data());
+                                scene.accumulateBoundsNear(added[q], addedAnchors[q], first, h(), meshReads, false, near.data());
                         } else {
                             if (prev) anchorAll(centre);
                             for (std::size_t q = 0; q < among.size(); ++q)
-                                scene.accumulateBoundsNear(among[q], anchors[q], first, h(), false, near.data());
+                                scene.accumulateBoundsNear(among[q], anchors[q], first, h(), meshReads, false, near.data());
                         }
                         if (out) {
                             out->boundsAt[index] = std::int16_t(out->voxelBounds.size() / LeafSums::kBlockVoxels);

@@ -89,8 +89,8 @@ FixedInterval DensityScene::contributionBounds(std::uint32_t i, const DensityAnc
     return signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
 }
 
-void DensityScene::accumulateBoundsNear(std::uint32_t i, const DensityAnchor& a, const Vec3d& first, double step, bool takeOut,
-                                        FixedInterval* sums) const {
+void DensityScene::accumulateBoundsNear(std::uint32_t i, const DensityAnchor& a, const Vec3d& first, double step,
+                                        const Neighbourhood& around, bool takeOut, FixedInterval* sums) const {
     constexpr int n = kNearBlock, count = n * n * n;
     if (!a.hasNormal || !(a.lo < a.hi)) { // the same bounds over the whole ball
         const FixedInterval b = signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
@@ -99,7 +99,7 @@ void DensityScene::accumulateBoundsNear(std::uint32_t i, const DensityAnchor& a,
         return;
     }
     double lo[count], hi[count];
-    mPrepared[i].densityBoundsNearBlock(a, first, step, n, step, lo, hi);
+    mPrepared[i].densityBoundsNearBlock(a, first, step, n, around, lo, hi);
     // Rounded outwards by truncation and a unit (floor and ceil without a libm call per voxel).
     const bool add = mPrimitives[i].op == DensityOp::Add;
     for (int k = 0; k < count; ++k) {

@@ -73,12 +73,11 @@ public:
     }
     FixedInterval contributionBounds(std::uint32_t i, const DensityAnchor& anchor) const;
     // Adds primitive i's signed bounds near each voxel of the 4³ block whose first voxel centre is
-    // `first` (voxels `step` apart, z fastest), over the voxel's 3³ neighbourhood, to sums[] — or
-    // takes them out (an edit's old primitive). The anchor is the block's (its ball holds those
-    // neighbourhoods).
+    // `first` (voxels `step` apart, z fastest), over the voxel's neighbourhood, to sums[] — or takes
+    // them out (an edit's old primitive). The anchor is the block's (its ball holds the neighbourhoods).
     static constexpr int kNearBlock = 4;
-    void accumulateBoundsNear(std::uint32_t i, const DensityAnchor& anchor, const Vec3d& first, double step, bool takeOut,
-                              FixedInterval* sums) const;
+    void accumulateBoundsNear(std::uint32_t i, const DensityAnchor& anchor, const Vec3d& first, double step,
+                              const Neighbourhood& around, bool takeOut, FixedInterval* sums) const;
 
     // Scans every primitive instead of asking the index (same results, slower): for tests and
     // benchmarks that compare the two.
