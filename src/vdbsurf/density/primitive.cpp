@@ -222,12 +222,6 @@ void PreparedPrimitive::densityBounds(const Box3& box, double& lo, double& hi) c
     hi = mP.weight * falloffValue(dmin / mP.falloff);
 }
 
-void PreparedPrimitive::densityBoundsAround(const Vec3d& c, double radius, double& lo, double& hi) const {
-    const DensityAnchor a = anchorAround(c, radius);
-    lo = a.lo;
-    hi = a.hi;
-}
-
 double PreparedPrimitive::nearestCorePoint(const Vec3d& p, Vec3d& closest) const {
     // The distance exactly as coreDistance(p) computes it, so bounds from either agree bit for bit.
     closest = p;

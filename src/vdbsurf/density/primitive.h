@@ -78,10 +78,9 @@ public:
         densityBounds(box, lo, hi);
         return hi > 0;
     }
-    // The same over a ball, from the centre's distance alone: cheaper and looser, for small blocks.
-    void densityBoundsAround(const Vec3d& centre, double radius, double& lo, double& hi) const;
-    // That ball's bounds and what the centre's distance found on the way (anchorAround), and then
-    // bounds over a neighbourhood of v inside the ball from the anchor alone — a few flops, no root.
+    // The same over a ball, from the centre's distance alone (cheaper and looser, for small
+    // blocks), with what that distance found on the way; then bounds over a neighbourhood of v
+    // inside the ball from the anchor alone — a few flops, no root.
     DensityAnchor anchorAround(const Vec3d& centre, double radius) const;
     void densityBoundsNear(const DensityAnchor& anchor, const Vec3d& v, const Neighbourhood& around, double& lo, double& hi) const;
     // The same for the n³ points first + step·(i, j, k), k fastest, into lo[] and hi[].

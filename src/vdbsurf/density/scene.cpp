@@ -79,12 +79,6 @@ double DensityScene::sum(const Vec3d& p) const {
 
 double DensityScene::sum(const Vec3d& p, const std::vector<std::uint32_t>& among) const { return fromFixed(fixedSum(p, among)); }
 
-FixedInterval DensityScene::contributionBoundsAround(std::uint32_t i, const Vec3d& centre, double radius) const {
-    double lo, hi;
-    mPrepared[i].densityBoundsAround(centre, radius, lo, hi);
-    return signedFixedBounds(lo, hi, mPrimitives[i].op);
-}
-
 FixedInterval DensityScene::contributionBounds(std::uint32_t i, const DensityAnchor& a) const {
     return signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
 }

@@ -61,13 +61,11 @@ public:
     // Bounds over a box from every primitive, listing those that reach it (PreparedPrimitive::reaches).
     Interval boundsReaching(const Box3& box, std::vector<std::uint32_t>& reaching) const;
 
-    // Fixed-point terms: primitive i's signed contribution at p, their sum over `among`, and
-    // the signed bounds of primitive i over a ball (rounded outwards, so still conservative).
+    // Fixed-point terms: primitive i's signed contribution at p, and their sum over `among`.
     FixedDensity contribution(std::uint32_t i, const Vec3d& p) const;
     FixedDensity fixedSum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
-    FixedInterval contributionBoundsAround(std::uint32_t i, const Vec3d& centre, double radius) const;
-    // The same from primitive i's anchor there (PreparedPrimitive::anchorAround), and its bounds
-    // over a cube v ± halfWidth inside that ball.
+    // Primitive i's anchor at a ball's centre (PreparedPrimitive::anchorAround), and from it its
+    // signed bounds over the ball (rounded outwards, so still conservative).
     DensityAnchor anchorAround(std::uint32_t i, const Vec3d& centre, double radius) const {
         return mPrepared[i].anchorAround(centre, radius);
     }
