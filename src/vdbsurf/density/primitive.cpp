@@ -206,20 +206,27 @@ int PreparedPrimitive::area(const Vec3d& p) const {
     return mP.weight * falloffValue(d / mP.falloff) < 0.5 ? 1 : 2;
 }
 
-void PreparedPrimitive::densityBounds(const Box3& box, double& lo, double& hi) const {
-    lo = hi = 0;
+double PreparedPrimitive::densityUpperBound(const Box3& box) const {
     if (box.max.x < mInfluence.min.x || box.max.y < mInfluence.min.y || box.max.z < mInfluence.min.z ||
         box.min.x > mInfluence.max.x || box.min.y > mInfluence.max.y || box.min.z > mInfluence.max.z)
-        return;
+        return 0.0;
+    const double halfDiagonal = 0.5 * length(box.extent());
+    const double dmin = std::max(0.0, coreDistance(box.center()) - halfDiagonal * (1 + 1e-12) - 1e-12);
+    return mP.weight * falloffValue(dmin / mP.falloff);
+}
+
+void PreparedPrimitive::densityBounds(const Box3& box, double& lo, double& hi) const {
+    // The upper bound first: where it is 0 so is the lower one (every corner is at least as far),
+    // and the eight corner distances are spared.
+    lo = 0;
+    hi = densityUpperBound(box);
+    if (!(hi > 0)) return;
     double dmax = 0;
     for (int k = 0; k < 8; ++k) {
         const Vec3d c(k & 1 ? box.max.x : box.min.x, k & 2 ? box.max.y : box.min.y, k & 4 ? box.max.z : box.min.z);
         dmax = std::max(dmax, coreDistance(c));
     }
-    const double halfDiagonal = 0.5 * length(box.extent());
-    const double dmin = std::max(0.0, coreDistance(box.center()) - halfDiagonal * (1 + 1e-12) - 1e-12);
     lo = mP.weight * falloffValue(dmax / mP.falloff);
-    hi = mP.weight * falloffValue(dmin / mP.falloff);
 }
 
 double PreparedPrimitive::nearestCorePoint(const Vec3d& p, Vec3d& closest) const {
@@ -297,20 +304,27 @@ void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec
         t = std::min(std::max(t, 0.0), 1.0);
         return 1.0 - t * t * (3.0 - 2.0 * t);
     };
+    // Rounding in the closest point, the normal and the sums below is ~1e-15 of the lengths
+    // involved; one slack for the whole block, from its farthest point.
+    const double reach = std::sqrt(3.0) * (n - 1) * step;
+    const double slack = 1e-9 * (length(first - a.closest) + reach + mMaxRadius) +
+                         1e-14 * (std::fabs(first.x) + std::fabs(first.y) + std::fabs(first.z) + 3 * (n - 1) * step);
+    const double loCap = a.lo, hiCap = a.hi, weight = mP.weight;
     int index = 0;
     for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j)
+        for (int j = 0; j < n; ++j) {
+            // Along a row only z changes: the plane's distance and |r|² are updated, not recomputed.
+            const double rx = first.x + i * step - a.closest.x, ry = first.y + j * step - a.closest.y;
+            const double planeXY = nrm.x * rx + nrm.y * ry, lengthXY = rx * rx + ry * ry;
             for (int k = 0; k < n; ++k, ++index) {
-                const Vec3d v = first + Vec3d(i, j, k) * step;
-                const Vec3d r = v - a.closest;
-                const double len = length(r);
-                // Rounding in the closest point, the normal and these sums is ~1e-15 of the lengths involved.
-                const double slack = 1e-9 * (len + mMaxRadius) + 1e-14 * (std::fabs(v.x) + std::fabs(v.y) + std::fabs(v.z));
-                const double dmin = dot(nrm, r) - spread - slack;
+                const double rz = first.z + k * step - a.closest.z;
+                const double len = std::sqrt(lengthXY + rz * rz);
+                const double dmin = planeXY + nrm.z * rz - spread - slack;
                 const double dmax = len + corner + slack;
-                lo[index] = std::max(a.lo, mP.weight * falloff(dmax * invFalloff));
-                hi[index] = std::min(a.hi, mP.weight * falloff(dmin * invFalloff));
+                lo[index] = std::max(loCap, weight * falloff(dmax * invFalloff));
+                hi[index] = std::min(hiCap, weight * falloff(dmin * invFalloff));
             }
+        }
 }
 
 } // namespace vdbsurf

@@ -78,6 +78,8 @@ public:
         densityBounds(box, lo, hi);
         return hi > 0;
     }
+    bool reaches(const Box3& box) const { return densityUpperBound(box) > 0; } // the same answer, without lo
+    double densityUpperBound(const Box3& box) const; // densityBounds' hi alone (one distance)
     // The same over a ball, from the centre's distance alone (cheaper and looser, for small
     // blocks), with what that distance found on the way; then bounds over a neighbourhood of v
     // inside the ball from the anchor alone — a few flops, no root.

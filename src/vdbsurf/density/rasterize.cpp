@@ -207,9 +207,8 @@ struct DensityRaster::Impl {
                 }();
                 prev = &zero;
             } else if (prev) {
-                double a, b;
                 for (std::uint32_t i : change->removed)
-                    if (change->before->prepared()[i].reaches(reach, a, b)) removed.push_back(i);
+                    if (change->before->prepared()[i].reaches(reach)) removed.push_back(i);
             }
         }
         auto leaf = std::make_unique<LeafT>(origin, 0.0f, false);
@@ -408,11 +407,10 @@ struct DensityRaster::Impl {
     // the test a leaf's rule applies to its reach (PreparedPrimitive::reaches), so it agrees
     // with the leaves on where a changed primitive adds something.
     bool changeReaches(const Change& change, const Box3& box) const {
-        double lo, hi;
         for (std::uint32_t i : change.removed)
-            if (change.before->prepared()[i].reaches(box, lo, hi)) return true;
+            if (change.before->prepared()[i].reaches(box)) return true;
         for (std::uint32_t j : change.added)
-            if (scene.prepared()[j].reaches(box, lo, hi)) return true;
+            if (scene.prepared()[j].reaches(box)) return true;
         return false;
     }
     // Whether a block may hold a block, at any level below it, that a changed primitive reaches:
