@@ -313,7 +313,7 @@ void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec
     int index = 0;
     for (int i = 0; i < n; ++i)
         for (int j = 0; j < n; ++j) {
-            // Along a row only z changes: the plane's distance and |r|² are updated, not recomputed.
+            // Along a row only z changes: the x and y parts of the plane's distance and of |r|² are taken once.
             const double rx = first.x + i * step - a.closest.x, ry = first.y + j * step - a.closest.y;
             const double planeXY = nrm.x * rx + nrm.y * ry, lengthXY = rx * rx + ry * ry;
             for (int k = 0; k < n; ++k, ++index) {
