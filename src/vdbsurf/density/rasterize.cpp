@@ -242,8 +242,9 @@ struct DensityRaster::Impl {
             for (auto it = leaf->beginValueAll(); it; ++it) setExact(it.getCoord());
         } else {
             // The leaf is cut into 4³ blocks, each decided from the scene's bounds over the block
-            // grown by the halo — a ball around its centre, from one distance per primitive (the
-            // distance is 1-Lipschitz). In a block the surface may pass within the halo of, each
+            // grown by the halo, from one distance per primitive at its centre (over the ball around
+            // that cube — the distance is 1-Lipschitz — and tightened to the cube by the anchor's
+            // half-space). In a block the surface may pass within the halo of, each
             // voxel is decided again from the bounds over the points a mesher may read it for —
             // its own 3³ block (is it a corner of a lattice cell the surface crosses: marching
             // cubes, DMC's thin search) and its axis neighbours' (is it in the central difference
@@ -252,7 +253,8 @@ struct DensityRaster::Impl {
             // voxels whose neighbourhood may straddle 0.5 are evaluated; every other one is read
             // for its side alone, 1 or background. The band evaluated is a few voxels thick.
             const Neighbourhood meshReads{h(), h()}; // the voxel's 3³ block and its axis neighbours'
-            const double radius = 0.5 * std::sqrt(3.0) * (kBlock - 1 + 2 * kHalo) * h(); // holds each voxel ± kHalo
+            const double halo = (0.5 * (kBlock - 1) + kHalo) * h(); // the block's voxels ± kHalo: a cube around its centre
+            const double radius = std::sqrt(3.0) * halo;             // and the ball around that cube
             std::vector<DensityAnchor> anchors(among.size()), removedAnchors(removed.size()), addedAnchors(added.size());
             auto anchorAll = [&](const Vec3d& centre) {
                 for (std::size_t q = 0; q < among.size(); ++q) anchors[q] = scene.anchorAround(among[q], centre, radius);
@@ -269,15 +271,15 @@ struct DensityRaster::Impl {
                             bounds = prev->blocks[index];
                             for (std::size_t q = 0; q < removed.size(); ++q) {
                                 removedAnchors[q] = change->before->anchorAround(removed[q], centre, radius);
-                                bounds -= change->before->contributionBounds(removed[q], removedAnchors[q]);
+                                bounds -= change->before->contributionBounds(removed[q], removedAnchors[q], centre, halo);
                             }
                             for (std::size_t q = 0; q < added.size(); ++q) {
                                 addedAnchors[q] = scene.anchorAround(added[q], centre, radius);
-                                bounds += scene.contributionBounds(added[q], addedAnchors[q]);
+                                bounds += scene.contributionBounds(added[q], addedAnchors[q], centre, halo);
                             }
                         } else {
                             anchorAll(centre);
-                            for (std::size_t q = 0; q < among.size(); ++q) bounds += scene.contributionBounds(among[q], anchors[q]);
+                            for (std::size_t q = 0; q < among.size(); ++q) bounds += scene.contributionBounds(among[q], anchors[q], centre, halo);
                         }
                         if (out) out->blocks[index] = bounds;
                         const Fill f = decide(bounds);

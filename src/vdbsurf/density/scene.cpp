@@ -79,8 +79,10 @@ double DensityScene::sum(const Vec3d& p) const {
 
 double DensityScene::sum(const Vec3d& p, const std::vector<std::uint32_t>& among) const { return fromFixed(fixedSum(p, among)); }
 
-FixedInterval DensityScene::contributionBounds(std::uint32_t i, const DensityAnchor& a) const {
-    return signedFixedBounds(a.lo, a.hi, mPrimitives[i].op);
+FixedInterval DensityScene::contributionBounds(std::uint32_t i, const DensityAnchor& a, const Vec3d& centre, double halfWidth) const {
+    double lo, hi;
+    mPrepared[i].densityBoundsNear(a, centre, Neighbourhood{halfWidth, 0.0}, lo, hi);
+    return signedFixedBounds(lo, hi, mPrimitives[i].op);
 }
 
 void DensityScene::accumulateBoundsNear(std::uint32_t i, const DensityAnchor& a, const Vec3d& first, double step,

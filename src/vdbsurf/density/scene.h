@@ -69,7 +69,8 @@ public:
     DensityAnchor anchorAround(std::uint32_t i, const Vec3d& centre, double radius) const {
         return mPrepared[i].anchorAround(centre, radius);
     }
-    FixedInterval contributionBounds(std::uint32_t i, const DensityAnchor& anchor) const;
+    // ... and over the cube centre ± halfWidth inside the ball (tighter: the anchor's half-space).
+    FixedInterval contributionBounds(std::uint32_t i, const DensityAnchor& anchor, const Vec3d& centre, double halfWidth) const;
     // Adds primitive i's signed bounds near each voxel of the 4³ block whose first voxel centre is
     // `first` (voxels `step` apart, z fastest), over the voxel's neighbourhood, to sums[] — or takes
     // them out (an edit's old primitive). The anchor is the block's (its ball holds the neighbourhoods).
