@@ -440,7 +440,7 @@ TEST_CASE("cores covering whole VDB nodes become constant tiles, without per-vox
     CHECK(double(grid->activeVoxelCount()) > 3.0 * 3.0 * 3.0 / 1e-6);
 }
 
-TEST_CASE("surface-only rasterization: exact near the surface, right side elsewhere, same marching cubes") {
+TEST_CASE("surface-only rasterization: exact where a mesher reads, right side elsewhere, same marching cubes and DMC meshes") {
     initializeOpenVdb();
     const DensityScene scene(testScene(), "test");
     RasterOptions full, surf;
