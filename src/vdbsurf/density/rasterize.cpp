@@ -242,16 +242,16 @@ struct DensityRaster::Impl {
             for (auto it = leaf->beginValueAll(); it; ++it) setExact(it.getCoord());
         } else {
             // The leaf is cut into 4³ blocks, each decided from the scene's bounds over the block
-            // grown by the halo, from one distance per primitive at its centre (over the ball around
-            // that cube — the distance is 1-Lipschitz — and tightened to the cube by the anchor's
-            // half-space). In a block the surface may pass within the halo of, each
-            // voxel is decided again from the bounds over the points a mesher may read it for —
-            // its own 3³ block (is it a corner of a lattice cell the surface crosses: marching
-            // cubes, DMC's thin search) and its axis neighbours' (is it in the central difference
-            // at such a corner: DMC's crossing normals and sharp-feature tests) — which the
-            // anchors found by those distances give without a root (densityBoundsNear). Only
-            // voxels whose neighbourhood may straddle 0.5 are evaluated; every other one is read
-            // for its side alone, 1 or background. The band evaluated is a few voxels thick.
+            // grown by the halo, from one distance per primitive at its centre (over the ball
+            // around that cube — the distance is 1-Lipschitz — tightened to the cube by the
+            // anchor's half-space). In a block the surface may pass within the halo of, each voxel
+            // is decided again from the bounds over the points a mesher may read it for — its own
+            // 3³ block (is it a corner of a lattice cell the surface crosses: marching cubes, DMC's
+            // thin search) and its axis neighbours' (is it in the central difference at such a
+            // corner: DMC's crossing normals and sharp-feature tests) — which the anchors give
+            // without a root (densityBoundsNear). Only voxels whose neighbourhood may straddle 0.5
+            // are evaluated; every other one is read for its side alone, 1 or background. The band
+            // evaluated is a few voxels thick.
             const Neighbourhood meshReads{h(), h()}; // the voxel's 3³ block and its axis neighbours'
             const double halo = (0.5 * (kBlock - 1) + kHalo) * h(); // the block's voxels ± kHalo: a cube around its centre
             const double radius = std::sqrt(3.0) * halo;             // and the ball around that cube

@@ -9,8 +9,8 @@
 // surfaceOnly, a leaf is decided per 4³ block, and in blocks the 0.5 surface can pass within
 // two voxels of, per voxel: only voxels a mesher may read (corners of lattice cells the surface
 // crosses, and their axis neighbours, for DMC's central differences) are evaluated; the rest
-// are filled by side (1 inside, background outside). Each block's decision depends only on the primitives that reach
-// it, and sums are exact fixed-point integers, so an edit redecides only the blocks and leaves
+// are filled by side (1 inside, background outside). Each block's decision depends only on the
+// primitives that reach it, and sums are exact fixed-point integers, so an edit redecides only the blocks and leaves
 // the changed primitives reach before or after — with keepSums, correcting each stored sum by
 // those primitives alone — and equals a full rebuild voxel for voxel.
 #pragma once

@@ -64,12 +64,12 @@ public:
     // Fixed-point terms: primitive i's signed contribution at p, and their sum over `among`.
     FixedDensity contribution(std::uint32_t i, const Vec3d& p) const;
     FixedDensity fixedSum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
-    // Primitive i's anchor at a ball's centre (PreparedPrimitive::anchorAround), and from it its
-    // signed bounds over the ball (rounded outwards, so still conservative).
+    // Primitive i's anchor at a ball's centre (PreparedPrimitive::anchorAround), and from it the
+    // primitive's signed bounds over the cube centre ± halfWidth inside that ball (rounded outwards,
+    // so still conservative; tighter than over the ball, by the anchor's half-space).
     DensityAnchor anchorAround(std::uint32_t i, const Vec3d& centre, double radius) const {
         return mPrepared[i].anchorAround(centre, radius);
     }
-    // ... and over the cube centre ± halfWidth inside the ball (tighter: the anchor's half-space).
     FixedInterval contributionBounds(std::uint32_t i, const DensityAnchor& anchor, const Vec3d& centre, double halfWidth) const;
     // Adds primitive i's signed bounds near each voxel of the 4³ block whose first voxel centre is
     // `first` (voxels `step` apart, z fastest), over the voxel's neighbourhood, to sums[] — or takes
