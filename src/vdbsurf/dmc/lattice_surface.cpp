@@ -27,6 +27,11 @@ namespace {
 
 using MaskLeaf = openvdb::MaskTree::LeafNodeType;
 
+// A crossing this close to a node (in cells) is that node's, as if the node held the iso value:
+// far below any detail a lattice of this spacing shows (node offsets keep 10^-5 cells inside
+// their Ω likewise), and far above the rounding of a level set's stored values.
+constexpr double kOnNode = 1e-5;
+
 // Per-leaf results of the first pass: the vertices this leaf owns and what the second pass
 // needs to find them again (cell rank -> first vertex, owned-edge mask).
 struct LeafWork {
@@ -42,6 +47,8 @@ struct LeafWork {
     std::vector<std::uint8_t> sharpCandidate;
     // Vertices that sit exactly on a node whose value is the iso value: (local vertex, node).
     std::vector<std::pair<std::uint32_t, Coord>> nodeVertices;
+    // Of those, the ones put there because they rounded to the node (ascending).
+    std::vector<std::uint32_t> roundedVertices;
     std::uint32_t centreCount = 0; // vertices added at loop centres, numbered after the edge vertices
     std::uint32_t faceCount = 0, indexCount = 0;
     std::uint32_t vertexBase = 0, faceBase = 0, indexBase = 0;
@@ -303,19 +310,31 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     const double va = vals[ia], vb = vals[ib];
                     const Vec3d pa = nodePos(la), pb = nodePos(lb);
                     // A node exactly at the iso value carries the crossing of each of its edges:
-                    // those vertices coincide and are welded into one after the second pass.
+                    // those vertices coincide and are welded into one after the second pass. So
+                    // does a crossing within kOnNode of a node or that rounds to its point in the
+                    // mesh's float coordinates (a node within rounding of the iso value: a level
+                    // set's voxels on a box's face are stored so): else the node's crossings would
+                    // be distinct vertices at one point, and the polygons between them would have
+                    // no area (a box's corner cap; nodes bridged onto a face at the lattice's half
+                    // cells).
                     const std::uint32_t local = std::uint32_t(w.vertices.size());
                     Vec3d p;
                     double t;
-                    if (va == iso || vb == iso) {
-                        const bool atA = va == iso;
-                        t = atA ? 0.0 : 1.0;
-                        p = atA ? pa : pb;
-                        const Vec3i ln = atA ? la : lb;
-                        w.nodeVertices.emplace_back(local, w.origin.offsetBy(ln.x, ln.y, ln.z));
-                    } else {
+                    int atEnd = va == iso ? 0 : (vb == iso ? 1 : -1);
+                    if (atEnd < 0) {
                         t = linear && !moved[ia] && !moved[ib] ? (iso - va) / (vb - va) : field.edgeCrossing(pa, pb, va, vb, iso);
                         p = pa + (pb - pa) * t;
+                        const Vec3f rounded(p);
+                        const double near = kOnNode * kOnNode * frame.h * frame.h;
+                        atEnd = rounded == Vec3f(pa) || dot(p - pa, p - pa) <= near ? 0
+                                : rounded == Vec3f(pb) || dot(p - pb, p - pb) <= near ? 1 : -1;
+                        if (atEnd >= 0) w.roundedVertices.push_back(local);
+                    }
+                    if (atEnd >= 0) {
+                        t = atEnd;
+                        p = atEnd == 0 ? pa : pb;
+                        const Vec3i ln = atEnd == 0 ? la : lb;
+                        w.nodeVertices.emplace_back(local, w.origin.offsetBy(ln.x, ln.y, ln.z));
                     }
                     w.vertices.push_back(Vec3f(p));
                     if (options.normals) {
@@ -631,9 +650,17 @@ Mesh LatticeSurface::mesh() {
     });
     if (im.options.cancel) im.options.cancel->check();
     std::vector<std::pair<std::uint32_t, Vec3i>> atNode; // (vertex, node), in leaf order
-    for (const LeafWork& w : im.work)
-        for (const auto& [local, node] : w.nodeVertices) atNode.emplace_back(w.vertexBase + local, Vec3i(node.x(), node.y(), node.z()));
-    const NodeWeldStats welding = weldNodeVertices(mesh, atNode);
+    std::vector<std::uint8_t> rounded;                    // per entry of atNode: put there by rounding
+    for (const LeafWork& w : im.work) {
+        // (Both lists ascend by vertex.)
+        auto r = w.roundedVertices.begin();
+        for (const auto& [local, node] : w.nodeVertices) {
+            atNode.emplace_back(w.vertexBase + local, Vec3i(node.x(), node.y(), node.z()));
+            while (r != w.roundedVertices.end() && *r < local) ++r;
+            rounded.push_back(r != w.roundedVertices.end() && *r == local);
+        }
+    }
+    const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded);
     im.stats.weldedVertices = welding.weldedVertices;
     im.stats.collapsedPolygons = welding.collapsedPolygons;
     im.stats.splitVertices = welding.splitVertices;

@@ -119,10 +119,15 @@ std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint
 // one vertex w, or two arriving from one, mean the edge {v, w} has more than two polygons or two
 // running the same way (with at most one each way it is fine). Only edges at a welded vertex
 // can have changed, and every loop through one is listed, so looking at the corners of the
-// welded vertices finds every such edge. Marks both ends that are welded vertices in `apart`
-// (by slot, the numbering of the possible representatives); returns whether any was found.
+// welded vertices finds every such edge. Marks welded vertices to keep apart in `apart` (by slot,
+// the numbering of the possible representatives): where both ends of a bad edge are welded and
+// `oneEnd` is set, only one of them — the one fewer polygons hold twice (`selfPolygons`), so
+// that keeping it apart leaves its vertices coincident but no polygon without area (two nodes
+// placed side by side on a sharp edge pinch it when both are welded; kept apart together, the
+// polygons among one's vertices are slivers of no area); else both. Returns whether any was found.
 bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& isRep, const std::vector<std::uint32_t>& slot,
-                          std::size_t slots, std::vector<std::uint8_t>& apart) {
+                          std::size_t slots, const std::vector<std::uint32_t>& selfPolygons, bool oneEnd,
+                          std::vector<std::uint8_t>& apart) {
     // The corners at each welded vertex, grouped by counting: (next vertex, previous vertex).
     std::vector<std::uint32_t> first(slots + 1, 0);
     for (std::uint32_t v : loops.indices)
@@ -138,8 +143,7 @@ bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& i
                 if (isRep[p[i]]) corners[fill[slot[p[i]]]++] = {p[i + 1 < n ? i + 1 : 0], p[i > 0 ? i - 1 : n - 1]};
         }
     }
-    std::vector<std::uint8_t> bad(slots, 0);
-    std::vector<std::vector<std::uint32_t>> badEnds(chunkCount(slots)); // the w of each bad edge
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> badEdges(chunkCount(slots)); // (slot of v, w)
     forEachChunk(slots, [&](std::size_t c, std::size_t b, std::size_t e) {
         std::vector<std::uint32_t> ends;
         for (std::size_t s = b; s < e; ++s) {
@@ -148,17 +152,50 @@ bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& i
                 for (std::uint32_t i = first[s]; i < first[s + 1]; ++i) ends.push_back(way ? corners[i].second : corners[i].first);
                 std::sort(ends.begin(), ends.end());
                 for (std::size_t i = 1; i < ends.size(); ++i)
-                    if (ends[i] == ends[i - 1]) bad[s] = 1, badEnds[c].push_back(ends[i]);
+                    if (ends[i] == ends[i - 1]) badEdges[c].emplace_back(std::uint32_t(s), ends[i]);
             }
         }
     });
     bool any = false;
-    for (std::size_t s = 0; s < slots; ++s)
-        if (bad[s]) apart[s] = 1, any = true;
-    for (const auto& ends : badEnds)
-        for (std::uint32_t w : ends)
-            if (isRep[w]) apart[slot[w]] = 1;
+    for (const auto& edges : badEdges)
+        for (const auto& [s, w] : edges) {
+            any = true;
+            if (!isRep[w]) {
+                apart[s] = 1;
+                continue;
+            }
+            // (Seen from both ends: the choice depends on the pair alone.)
+            const std::uint32_t t = slot[w];
+            if (!oneEnd) {
+                apart[s] = apart[t] = 1;
+                continue;
+            }
+            const bool sApart = selfPolygons[s] != selfPolygons[t] ? selfPolygons[s] < selfPolygons[t] : s > t;
+            apart[sApart ? s : t] = 1;
+        }
     return any;
+}
+
+// For each node (by slot): how many of the candidate polygons hold two or more of its vertices.
+std::vector<std::uint32_t> countSelfPolygons(const Mesh& mesh, const std::vector<std::uint32_t>& candidates,
+                                             const std::vector<std::uint32_t>& slotOfVertex, std::size_t slots) {
+    std::vector<std::vector<std::uint32_t>> parts(chunkCount(candidates.size()));
+    forEachChunk(candidates.size(), [&](std::size_t c, std::size_t b, std::size_t e) {
+        std::vector<std::uint32_t> seen;
+        for (std::size_t k = b; k < e; ++k) {
+            const std::uint32_t f = candidates[k];
+            seen.clear();
+            for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i)
+                if (slotOfVertex[mesh.indices[i]] != kNone) seen.push_back(slotOfVertex[mesh.indices[i]]);
+            std::sort(seen.begin(), seen.end());
+            for (std::size_t i = 1; i < seen.size(); ++i)
+                if (seen[i] == seen[i - 1] && (i == 1 || seen[i - 2] != seen[i])) parts[c].push_back(seen[i]);
+        }
+    });
+    std::vector<std::uint32_t> count(slots, 0);
+    for (const auto& p : parts)
+        for (std::uint32_t s : p) ++count[s];
+    return count;
 }
 
 bool reversedLoops(const Loops& loops, std::size_t x, std::size_t y) {
@@ -324,7 +361,8 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
 
 } // namespace
 
-NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
+                               const std::vector<std::uint8_t>& rounded) {
     NodeWeldStats stats;
     if (atNode.empty()) return stats;
     const std::vector<std::uint32_t> repOf = representatives(atNode);
@@ -353,6 +391,12 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
     std::vector<std::uint32_t> remap(mesh.points.size());
     for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
     std::vector<std::uint8_t> isRep(mesh.points.size(), 0), apart(slots, 0); // apart: representatives kept apart, by slot
+    std::vector<std::uint32_t> slotOfVertex(mesh.points.size(), kNone);
+    for (std::size_t k = 0; k < atNode.size(); ++k) slotOfVertex[atNode[k].first] = slot[repOf[k]];
+    const std::vector<std::uint32_t> selfPolygons = countSelfPolygons(mesh, candidates, slotOfVertex, slots);
+    std::vector<std::uint8_t> onlyRounded(slots, !rounded.empty()); // nodes whose vertices all rounded to them
+    for (std::size_t k = 0; k < rounded.size(); ++k)
+        if (!rounded[k]) onlyRounded[slot[repOf[k]]] = 0;
     for (int attempt = 0;; ++attempt) {
         for (std::size_t k = 0; k < atNode.size(); ++k) remap[atNode[k].first] = atNode[k].first, isRep[repOf[k]] = 0;
         std::uint64_t welded = 0;
@@ -387,13 +431,30 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         std::vector<std::uint32_t> firstLoop(candidates.size() + 1, 0);
         for (std::size_t k = 0; k < candidates.size(); ++k) firstLoop[k + 1] = firstLoop[k] + loopsOf[k];
 
-        const bool bad = markNonManifoldWelds(loops, isRep, slot, slots, apart);
-        if (bad && attempt < 8) continue;
+        // A node whose vertices only rounded to it and whose polygons all collapse is a closed
+        // piece of its own, shrunk to the node's point: a node inside by a rounding error, alone
+        // on its side (a ball whose surface passes through it). Welded, the piece would vanish,
+        // and with it the only sign of a part that the thin search, which skips the cells around
+        // such a node, does not find; it keeps its vertices, as before rounding counted. (Pieces
+        // that collapse onto feature nodes and data nodes at the iso value are bubbles: they go.)
+        bool vanished = false;
+        {
+            std::vector<std::uint8_t> survives(slots, 0);
+            for (std::uint32_t v : loops.indices)
+                if (isRep[v]) survives[slot[v]] = 1;
+            for (std::uint32_t rep : repOf)
+                if (isRep[rep] && onlyRounded[slot[rep]] && !survives[slot[rep]]) apart[slot[rep]] = 1, vanished = true;
+        }
+        // One end of each bad edge first; from the fourth attempt on, both (as few attempts as
+        // before where keeping one apart moves the problem to the next node).
+        const bool bad = markNonManifoldWelds(loops, isRep, slot, slots, selfPolygons, attempt < 4, apart) || vanished;
+        if (bad && attempt < 12) continue;
         if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
 
         // Edge-manifold now, so a reversed pair is a closed piece of its own.
         std::vector<std::uint8_t> pillow;
         std::uint64_t collapsed = markReversedPairs(loops, isRep, pillow);
+
         for (std::uint64_t c : collapsedIn) collapsed += c;
         // A welded vertex where several fans meet gets a copy per further fan (rarely more than
         // two fans): room for those.

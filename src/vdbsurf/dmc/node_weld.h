@@ -26,8 +26,12 @@ struct NodeWeldStats {
 };
 
 // `atNode` lists (vertex, node) for every vertex on a node, in a fixed order: the first vertex
-// listed for a node represents it. Throws std::logic_error if no choice of nodes to keep apart
-// leaves an edge-manifold mesh within a few attempts (not seen on marching-cubes meshes).
-NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode);
+// listed for a node represents it. `rounded` (empty, or one flag per entry of atNode) marks the
+// vertices put on their node because they rounded to it (the node is within rounding of the iso
+// value): a node that has only such vertices, and whose polygons would all collapse, keeps them
+// apart. Throws std::logic_error if no choice of nodes to keep apart leaves an edge-manifold mesh
+// within a few attempts (not seen on marching-cubes meshes).
+NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
+                               const std::vector<std::uint8_t>& rounded = {});
 
 } // namespace vdbsurf
