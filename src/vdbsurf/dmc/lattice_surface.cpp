@@ -247,8 +247,11 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 sampleLeafNodes(field, frame, leaf, needed, vals);
             }
             moved.fill(0);
+            bool apronSampled = false; // without node gradients: gradients.sampleValues, once needed
+            int aroundMoved = -1;      // do the leaf's nodes or those beside them move? (once needed)
             // Most leaves hold no moved node: then the three probes per node below are skipped.
-            if (deformation && (anyActiveNode(*offsetAcc, w.origin) || anyActiveNode(*surfaceAcc, w.origin))) {
+            const bool leafMoved = deformation && (anyActiveNode(*offsetAcc, w.origin) || anyActiveNode(*surfaceAcc, w.origin));
+            if (leafMoved) {
                 for (int z = 0; z < kLeafNodesPerSide; ++z)
                     for (int y = 0; y < kLeafNodesPerSide; ++y)
                         for (int x = 0; x < kLeafNodesPerSide; ++x) {
@@ -328,7 +331,35 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                         const double near = kOnNode * kOnNode * frame.h * frame.h;
                         atEnd = rounded == Vec3f(pa) || dot(p - pa, p - pa) <= near ? 0
                                 : rounded == Vec3f(pb) || dot(p - pb, p - pb) <= near ? 1 : -1;
-                        if (atEnd >= 0) w.roundedVertices.push_back(local);
+                        if (atEnd >= 0) {
+                            // Where one of the node's neighbours alone lies across, this is the
+                            // node's only crossing: nothing to weld (a box's faces on node planes
+                            // put every crossing there on a node). (Not where nodes moved: their
+                            // sides are not the values'.)
+                            const Vec3i ln = atEnd == 0 ? la : lb;
+                            int across = -1;
+                            if (aroundMoved < 0) {
+                                const Coord below = w.origin.offsetBy(-8, -8, -8);
+                                aroundMoved = leafMoved || (deformation && (anyActiveNode(*offsetAcc, below) || anyActiveNode(*surfaceAcc, below)));
+                            }
+                            if (!aroundMoved) {
+                                if (!nodeGradients && !apronSampled) gradients.sampleValues(field, frame, w.origin), apronSampled = true;
+                                const bool in = isInside(gradients.value(ln.x, ln.y, ln.z), iso, side);
+                                across = 0;
+                                for (int k = 0; k < 6; ++k) {
+                                    Vec3i nb = ln;
+                                    nb[std::size_t(k / 2)] += k % 2 ? 1 : -1;
+                                    across += isInside(gradients.value(nb.x, nb.y, nb.z), iso, side) != in;
+                                }
+                            }
+                            if (across == 1) {
+                                t = atEnd;
+                                p = atEnd == 0 ? pa : pb;
+                                atEnd = -1;
+                            } else {
+                                w.roundedVertices.push_back(local);
+                            }
+                        }
                     }
                     if (atEnd >= 0) {
                         t = atEnd;

@@ -68,12 +68,20 @@ public:
                 }
     }
 
+    // The values alone (no gradients), for value(): a leaf's nodes and the nodes beside them.
+    void sampleValues(const Field& field, const LatticeFrame& frame, const openvdb::Coord& origin) {
+        field.sampleNodes(frame, {origin.x() - 1, origin.y() - 1, origin.z() - 1}, {kSide, kSide, kSide}, nullptr, mValues.data());
+    }
+
     // The values of the leaf's own nodes, as sampleLeafNodes gives them (the sample holds them).
     void leafValues(std::array<double, kLeafNodeCount>& out) const {
         for (int z = 0; z < kLeafNodesPerSide; ++z)
             for (int y = 0; y < kLeafNodesPerSide; ++y)
                 std::copy_n(&mValues[index(0, y, z)], kLeafNodesPerSide, &out[std::size_t(leafNodeIndex(0, y, z))]);
     }
+
+    // The value at a node of the leaf or beside it (x, y, z from -1 to kLeafNodesPerSide).
+    double value(int x, int y, int z) const { return mValues[index(x, y, z)]; }
 
     // Gradient (index units) at a node of the leaf.
     Vec3d at(const Vec3i& n) const {

@@ -97,6 +97,35 @@ private:
 
 // For each entry of atNode, the first vertex listed for its node.
 std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+    // Sorted by node, then by entry: the first entry of each run is its node's. Nodes packed into
+    // one integer sort several times faster than triples (every crossing on a box's face lies on
+    // a node when the faces lie on node planes); triples where the nodes span too much for that.
+    std::vector<std::uint32_t> repOf(atNode.size());
+    auto assign = [&](std::size_t n, auto&& sameNode, auto&& entry) {
+        for (std::size_t i = 0; i < n;) {
+            std::size_t j = i + 1;
+            while (j < n && sameNode(i, j)) ++j;
+            for (std::size_t t = i; t < j; ++t) repOf[entry(t)] = atNode[entry(i)].first;
+            i = j;
+        }
+    };
+    Vec3i lo = atNode.front().second, hi = lo;
+    for (const auto& [v, n] : atNode)
+        for (std::size_t a = 0; a < 3; ++a) lo[a] = std::min(lo[a], n[a]), hi[a] = std::max(hi[a], n[a]);
+    constexpr std::int64_t kSpan = std::int64_t(1) << 21;
+    if (std::int64_t(hi.x) - lo.x < kSpan && std::int64_t(hi.y) - lo.y < kSpan && std::int64_t(hi.z) - lo.z < kSpan) {
+        std::vector<std::pair<std::uint64_t, std::uint32_t>> keys(atNode.size());
+        for (std::size_t k = 0; k < atNode.size(); ++k) {
+            const Vec3i& n = atNode[k].second;
+            keys[k] = {std::uint64_t(std::int64_t(n.x) - lo.x) << 42 | std::uint64_t(std::int64_t(n.y) - lo.y) << 21 |
+                           std::uint64_t(std::int64_t(n.z) - lo.z),
+                       std::uint32_t(k)};
+        }
+        tbb::parallel_sort(keys.begin(), keys.end());
+        assign(keys.size(), [&](std::size_t i, std::size_t j) { return keys[i].first == keys[j].first; },
+               [&](std::size_t t) { return keys[t].second; });
+        return repOf;
+    }
     struct Key {
         int x, y, z;
         std::uint32_t k;
@@ -105,13 +134,8 @@ std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint
     std::vector<Key> keys(atNode.size());
     for (std::size_t k = 0; k < atNode.size(); ++k) keys[k] = {atNode[k].second.x, atNode[k].second.y, atNode[k].second.z, std::uint32_t(k)};
     tbb::parallel_sort(keys.begin(), keys.end());
-    std::vector<std::uint32_t> repOf(atNode.size());
-    for (std::size_t i = 0; i < keys.size();) {
-        std::size_t j = i;
-        while (j < keys.size() && std::tie(keys[j].x, keys[j].y, keys[j].z) == std::tie(keys[i].x, keys[i].y, keys[i].z)) ++j;
-        for (std::size_t t = i; t < j; ++t) repOf[keys[t].k] = atNode[keys[i].k].first;
-        i = j;
-    }
+    assign(keys.size(), [&](std::size_t i, std::size_t j) { return std::tie(keys[i].x, keys[i].y, keys[i].z) == std::tie(keys[j].x, keys[j].y, keys[j].z); },
+           [&](std::size_t t) { return keys[t].k; });
     return repOf;
 }
 
@@ -361,11 +385,11 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
 
 } // namespace
 
-NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
-                               const std::vector<std::uint8_t>& rounded) {
+// weldNodeVertices for nodes of two vertices or more; repOf as representatives() gives it.
+static NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, const std::vector<std::uint32_t>& repOf,
+                          const std::vector<std::uint8_t>& rounded) {
     NodeWeldStats stats;
     if (atNode.empty()) return stats;
-    const std::vector<std::uint32_t> repOf = representatives(atNode);
 
     // Only polygons through a vertex on a node can change: the attempts below redo just those.
     std::vector<std::uint8_t> onNode(mesh.points.size(), 0);
@@ -473,6 +497,27 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         stats.splitVertices = splitFansAt(mesh, std::move(welds), &fromCandidates);
         return stats;
     }
+}
+
+NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
+                               const std::vector<std::uint8_t>& rounded) {
+    if (atNode.empty()) return {};
+    const std::vector<std::uint32_t> repOf = representatives(atNode);
+    // A node with one vertex has nothing to weld: left out, the attempts touch only the polygons
+    // around nodes with several (where a box's faces lie on node planes, every crossing on a face
+    // rounds to a node, one a node but for the edges and corners).
+    std::vector<std::uint32_t> count(mesh.points.size(), 0);
+    for (std::uint32_t rep : repOf) ++count[rep];
+    std::vector<std::pair<std::uint32_t, Vec3i>> several;
+    std::vector<std::uint32_t> severalRep;
+    std::vector<std::uint8_t> severalRounded;
+    for (std::size_t k = 0; k < atNode.size(); ++k) {
+        if (count[repOf[k]] < 2) continue;
+        several.push_back(atNode[k]);
+        severalRep.push_back(repOf[k]);
+        if (!rounded.empty()) severalRounded.push_back(rounded[k]);
+    }
+    return weldSeveral(mesh, several, severalRep, severalRounded);
 }
 
 } // namespace vdbsurf
