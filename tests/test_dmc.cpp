@@ -653,9 +653,24 @@ std::size_t polygonsWithoutArea(const Mesh& m) {
     return count;
 }
 
+// The field meshed by DMC and by marching cubes at each spacing: closed, no polygon without area.
+void checkEveryPolygonHasArea(const Field& field, std::initializer_list<double> spacings) {
+    for (double h : spacings)
+        for (MeshMethod method : {MeshMethod::Dmc, MeshMethod::MarchingCubes}) {
+            MeshRequest req;
+            req.voxelSize = h;
+            req.method = method;
+            MeshReport rep;
+            const Mesh m = meshField(field, req, rep);
+            INFO("spacing " << h << ", " << methodName(method));
+            requireClosed(m);
+            CHECK(polygonsWithoutArea(m) == 0);
+        }
+}
+
 } // namespace
 
-TEST_CASE("DMC leaves few polygons without area: crossings that round to a node are the node's, and a pinched weld keeps one node apart") {
+TEST_CASE("few polygons without area: crossings that round to a node are the node's, and a pinched weld keeps one node apart") {
     // Vertices at one point came from two sources. A crossing a rounding error from its node (a
     // level set's voxels on a box's face are stored a hair inside) was a vertex of its own at the
     // node's point: a box's corners were capped by triangles of no area, and at 4 voxels a cell
@@ -683,7 +698,7 @@ TEST_CASE("DMC leaves few polygons without area: crossings that round to a node 
         INFO(polygons << " polygons without area in " << withoutArea << " of " << meshes << " meshes");
         CHECK(polygons <= 50);
     }
-    SECTION("a level-set box whose faces lie a rounding error beyond voxel planes, at its voxel size and at 4 voxels a cell") {
+    SECTION("a level-set box whose faces lie a rounding error beyond voxel planes, at its voxel size and at 4 voxels a cell (DMC and MC)") {
         // As in the shared cube: the voxels on the faces hold -1e-7 rather than 0, less than half
         // the float spacing of the coordinates there. At 4 voxels a cell the faces lie half way
         // between nodes, where the sharp pass flips the nodes beyond the edges onto them and
@@ -696,33 +711,15 @@ TEST_CASE("DMC leaves few polygons without area: crossings that round to a node 
                 return length(out) + std::min(std::max({q.x, q.y, q.z}), 0.0);
             },
             Box3{{-6.5, -6.5, -6.5}, {6.5, 6.5, 6.5}}, voxel);
-        const GridField field(grid, "box");
-        for (double h : {voxel, 4 * voxel}) {
-            MeshRequest req;
-            req.voxelSize = h;
-            MeshReport rep;
-            const Mesh m = meshField(field, req, rep);
-            INFO("spacing " << h);
-            requireClosed(m);
-            CHECK(polygonsWithoutArea(m) == 0);
-        }
+        checkEveryPolygonHasArea(GridField(grid, "box"), {voxel, 4 * voxel});
     }
-    SECTION("the shared sharp cube at its own voxel size and at 4 voxels a cell") {
+    SECTION("the shared sharp cube at its own voxel size and at 4 voxels a cell (DMC and MC)") {
         const std::string path = test::sharedData("vdb/cube_levelset_sharp.vdb");
         if (path.empty()) {
             WARN("../shared/data absent: cube case skipped");
             return;
         }
-        const GridField field(readScalarGrid(path, "").grid, "cube");
-        for (double h : {0.05, 0.2}) {
-            MeshRequest req;
-            req.voxelSize = h;
-            MeshReport rep;
-            const Mesh m = meshField(field, req, rep);
-            INFO("spacing " << h);
-            requireClosed(m);
-            CHECK(polygonsWithoutArea(m) == 0);
-        }
+        checkEveryPolygonHasArea(GridField(readScalarGrid(path, "").grid, "cube"), {0.05, 0.2});
     }
 }
 

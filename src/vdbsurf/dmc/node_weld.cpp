@@ -383,10 +383,8 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
     return newId;
 }
 
-} // namespace
-
 // weldNodeVertices for nodes of two vertices or more; repOf as representatives() gives it.
-static NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, const std::vector<std::uint32_t>& repOf,
+NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, const std::vector<std::uint32_t>& repOf,
                           const std::vector<std::uint8_t>& rounded) {
     NodeWeldStats stats;
     if (atNode.empty()) return stats;
@@ -478,7 +476,6 @@ static NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::ui
         // Edge-manifold now, so a reversed pair is a closed piece of its own.
         std::vector<std::uint8_t> pillow;
         std::uint64_t collapsed = markReversedPairs(loops, isRep, pillow);
-
         for (std::uint64_t c : collapsedIn) collapsed += c;
         // A welded vertex where several fans meet gets a copy per further fan (rarely more than
         // two fans): room for those.
@@ -498,6 +495,8 @@ static NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::ui
         return stats;
     }
 }
+
+} // namespace
 
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
                                const std::vector<std::uint8_t>& rounded) {
