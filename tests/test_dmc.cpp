@@ -1,5 +1,6 @@
 // Deformed Marching Cubes: thin parts kept (plates, rods, shells, cracks at random orientations),
 // the paper's lens, spikes and rotated cube, topology, determinism, and the switches.
+#include "support/shapes.h"
 #include "support/test_support.h"
 
 #include "vdbsurf/core/threads.h"
@@ -8,6 +9,7 @@
 #include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/dmc/node_gradients.h"
+#include "vdbsurf/dmc/node_weld.h"
 #include "vdbsurf/dmc/sharp_features.h"
 #include "vdbsurf/field/grid_field.h"
 #include "vdbsurf/lattice/lattice.h"
@@ -24,6 +26,7 @@
 #include <functional>
 #include <random>
 #include <sstream>
+#include <tuple>
 
 using namespace vdbsurf;
 
@@ -721,6 +724,42 @@ TEST_CASE("few polygons without area: crossings that round to a node are the nod
         }
         checkEveryPolygonHasArea(GridField(readScalarGrid(path, "").grid, "cube"), {0.05, 0.2});
     }
+}
+
+TEST_CASE("welding groups a node's vertices alike wherever its lattice coordinates lie") {
+    // Nodes sort as one packed integer where they span less than 2^21 along each axis and as
+    // triples beyond: a cube whose corners 0 and 6 are split into a copy per quad (as crossings
+    // at a node are) welds back to the cube either way, the same mesh; a node with one vertex is
+    // left alone.
+    std::vector<Mesh> welded;
+    for (const Vec3i& offset : {Vec3i(0, 0, 0), Vec3i(3000000, -2500000, 7)}) {
+        Mesh m = test::cubeMesh();
+        m.points.push_back(m.points[0]); // 8, 9: corner 0 of quads 2 and 5
+        m.points.push_back(m.points[0]);
+        m.points.push_back(m.points[6]); // 10, 11: corner 6 of quads 3 and 4
+        m.points.push_back(m.points[6]);
+        auto replace = [&](std::size_t polygon, std::uint32_t from, std::uint32_t to) {
+            for (std::uint32_t i = m.offsets[polygon]; i < m.offsets[polygon + 1]; ++i)
+                if (m.indices[i] == from) m.indices[i] = to;
+        };
+        replace(2, 0, 8), replace(5, 0, 9), replace(3, 6, 10), replace(4, 6, 11);
+        INFO("node offset " << offset.x << ", " << offset.y << ", " << offset.z);
+        REQUIRE(checkTopology(m).boundaryEdges > 0);
+        const Vec3i n0(0, 0, 0), n6 = Vec3i(1, 1, 1) + offset, n3(0, 1, 0);
+        const std::vector<std::pair<std::uint32_t, Vec3i>> atNode = {{0, n0}, {10, n6}, {8, n0}, {3, n3}, {6, n6}, {9, n0}, {11, n6}};
+        CHECK(weldNodeVertices(m, atNode).weldedVertices == 4);
+        CHECK(m.points.size() == 8);
+        CHECK(m.polygonCount() == 6);
+        requireClosed(m);
+        welded.push_back(m);
+    }
+    CHECK(welded[0].points == welded[1].points);
+    CHECK(welded[0].indices == welded[1].indices);
+    auto sorted = [](std::vector<Vec3f> p) {
+        std::sort(p.begin(), p.end(), [](const Vec3f& a, const Vec3f& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); });
+        return p;
+    };
+    CHECK(sorted(welded[0].points) == sorted(test::cubeMesh().points));
 }
 
 TEST_CASE("on a smooth torus, few nodes go onto edges: curvature's lines differ from cell to cell") {
