@@ -324,6 +324,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     Vec3d p;
                     double t;
                     int atEnd = va == iso ? 0 : (vb == iso ? 1 : -1);
+                    bool weld = true; // list the vertex for welding at its node
                     if (atEnd < 0) {
                         t = linear && !moved[ia] && !moved[ib] ? (iso - va) / (vb - va) : field.edgeCrossing(pa, pb, va, vb, iso);
                         p = pa + (pb - pa) * t;
@@ -352,20 +353,15 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                                     across += isInside(gradients.value(nb.x, nb.y, nb.z), iso, side) != in;
                                 }
                             }
-                            if (across == 1) {
-                                t = atEnd;
-                                p = atEnd == 0 ? pa : pb;
-                                atEnd = -1;
-                            } else {
-                                w.roundedVertices.push_back(local);
-                            }
+                            weld = across != 1;
+                            if (weld) w.roundedVertices.push_back(local);
                         }
                     }
                     if (atEnd >= 0) {
                         t = atEnd;
                         p = atEnd == 0 ? pa : pb;
                         const Vec3i ln = atEnd == 0 ? la : lb;
-                        w.nodeVertices.emplace_back(local, w.origin.offsetBy(ln.x, ln.y, ln.z));
+                        if (weld) w.nodeVertices.emplace_back(local, w.origin.offsetBy(ln.x, ln.y, ln.z));
                     }
                     w.vertices.push_back(Vec3f(p));
                     if (options.normals) {

@@ -95,17 +95,18 @@ private:
     std::vector<std::uint32_t> clean; // reused: most loops need no split, so no allocation
 };
 
-// For each entry of atNode, the first vertex listed for its node.
-std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+// For each entry of atNode, the first vertex listed for its node, and (listed) how many entries its node has.
+std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, std::vector<std::uint32_t>& listed) {
     // Sorted by node, then by entry: the first entry of each run is its node's. Nodes packed into
     // one integer sort several times faster than triples (every crossing on a box's face lies on
     // a node when the faces lie on node planes); triples where the nodes span too much for that.
     std::vector<std::uint32_t> repOf(atNode.size());
+    listed.assign(atNode.size(), 0);
     auto assign = [&](std::size_t n, auto&& sameNode, auto&& entry) {
         for (std::size_t i = 0; i < n;) {
             std::size_t j = i + 1;
             while (j < n && sameNode(i, j)) ++j;
-            for (std::size_t t = i; t < j; ++t) repOf[entry(t)] = atNode[entry(i)].first;
+            for (std::size_t t = i; t < j; ++t) repOf[entry(t)] = atNode[entry(i)].first, listed[entry(t)] = std::uint32_t(j - i);
             i = j;
         }
     };
@@ -202,7 +203,7 @@ bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& i
 
 // For each node (by slot): how many of the candidate polygons hold two or more of its vertices.
 std::vector<std::uint32_t> countSelfPolygons(const Mesh& mesh, const std::vector<std::uint32_t>& candidates,
-                                             const std::vector<std::uint32_t>& slotOfVertex, std::size_t slots) {
+                                             const std::vector<std::uint32_t>& slot, std::size_t slots) {
     std::vector<std::vector<std::uint32_t>> parts(chunkCount(candidates.size()));
     forEachChunk(candidates.size(), [&](std::size_t c, std::size_t b, std::size_t e) {
         std::vector<std::uint32_t> seen;
@@ -210,7 +211,7 @@ std::vector<std::uint32_t> countSelfPolygons(const Mesh& mesh, const std::vector
             const std::uint32_t f = candidates[k];
             seen.clear();
             for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i)
-                if (slotOfVertex[mesh.indices[i]] != kNone) seen.push_back(slotOfVertex[mesh.indices[i]]);
+                if (slot[mesh.indices[i]] != kNone) seen.push_back(slot[mesh.indices[i]]);
             std::sort(seen.begin(), seen.end());
             for (std::size_t i = 1; i < seen.size(); ++i)
                 if (seen[i] == seen[i - 1] && (i == 1 || seen[i - 2] != seen[i])) parts[c].push_back(seen[i]);
@@ -405,7 +406,8 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
         for (const auto& p : parts) candidates.insert(candidates.end(), p.begin(), p.end());
     }
 
-    // The representatives, numbered (for grouping corners by welded vertex).
+    // The representatives, numbered (for grouping corners by welded vertex); later also the other
+    // vertices on a node, with their node's number.
     std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
     std::size_t slots = 0;
     for (std::uint32_t rep : repOf)
@@ -413,9 +415,8 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
     std::vector<std::uint32_t> remap(mesh.points.size());
     for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
     std::vector<std::uint8_t> isRep(mesh.points.size(), 0), apart(slots, 0); // apart: representatives kept apart, by slot
-    std::vector<std::uint32_t> slotOfVertex(mesh.points.size(), kNone);
-    for (std::size_t k = 0; k < atNode.size(); ++k) slotOfVertex[atNode[k].first] = slot[repOf[k]];
-    const std::vector<std::uint32_t> selfPolygons = countSelfPolygons(mesh, candidates, slotOfVertex, slots);
+    for (std::size_t k = 0; k < atNode.size(); ++k) slot[atNode[k].first] = slot[repOf[k]]; // every vertex on a node: its node's
+    const std::vector<std::uint32_t> selfPolygons = countSelfPolygons(mesh, candidates, slot, slots);
     std::vector<std::uint8_t> onlyRounded(slots, !rounded.empty()); // nodes whose vertices all rounded to them
     for (std::size_t k = 0; k < rounded.size(); ++k)
         if (!rounded[k]) onlyRounded[slot[repOf[k]]] = 0;
@@ -501,17 +502,16 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
                                const std::vector<std::uint8_t>& rounded) {
     if (atNode.empty()) return {};
-    const std::vector<std::uint32_t> repOf = representatives(atNode);
+    std::vector<std::uint32_t> listed;
+    const std::vector<std::uint32_t> repOf = representatives(atNode, listed);
     // A node with one vertex has nothing to weld: left out, the attempts touch only the polygons
     // around nodes with several (where a box's faces lie on node planes, every crossing on a face
     // rounds to a node, one a node but for the edges and corners).
-    std::vector<std::uint32_t> count(mesh.points.size(), 0);
-    for (std::uint32_t rep : repOf) ++count[rep];
     std::vector<std::pair<std::uint32_t, Vec3i>> several;
     std::vector<std::uint32_t> severalRep;
     std::vector<std::uint8_t> severalRounded;
     for (std::size_t k = 0; k < atNode.size(); ++k) {
-        if (count[repOf[k]] < 2) continue;
+        if (listed[k] < 2) continue;
         several.push_back(atNode[k]);
         severalRep.push_back(repOf[k]);
         if (!rounded.empty()) severalRounded.push_back(rounded[k]);
