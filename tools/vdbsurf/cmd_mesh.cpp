@@ -112,8 +112,9 @@ void runMesh(const MeshOptions& o) {
     note("iso " + num(rep.iso) + " (" + rep.isoReason + "), lattice spacing " + num(rep.voxelSize) + " (" + rep.voxelSizeReason +
          ")");
     if (dmc)
-        note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts, " + std::to_string(rep.nodesOnCorners) +
-             " onto corners, " + std::to_string(rep.nodesOnEdges) + " onto edges");
+        note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts, " + std::to_string(rep.thinNodesCentred) +
+             " centred in them, " + std::to_string(rep.nodesOnCorners) + " onto corners, " + std::to_string(rep.nodesOnEdges) +
+             " onto edges");
 
     const auto tWrite = Clock::now();
     const std::vector<std::string> provenance = {
@@ -165,6 +166,7 @@ void runMesh(const MeshOptions& o) {
                            {"thin_samples", rep.thinSamples},
                            {"nodes_moved_thin", rep.thinNodesMoved},
                            {"nodes_moved_hidden_edges", rep.thinEdgesSplit},
+                           {"nodes_centred_thin", rep.thinNodesCentred},
                            {"sharp_edge_cells", rep.sharpEdgeCells},
                            {"sharp_corner_cells", rep.sharpCornerCells},
                            {"sharp_rejected", rep.sharpRejected},

@@ -58,13 +58,21 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.secondsLattice = lattice.stats.seconds;
 
     LatticeDeformation deformation;
+    ThinSearchOptions to;
+    to.iso = report.iso;
+    to.steps = request.searchSteps;
+    to.cancel = request.cancel;
+    std::vector<Vec3i> crowded; // for centring, the last move
+    auto centre = [&] {
+        const auto t = std::chrono::steady_clock::now();
+        std::vector<Vec3i> centred = centreThinParts(field, lattice, to, deformation, crowded, &report.thinSamples);
+        report.thinNodesCentred = centred.size();
+        report.secondsThin += std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+        return centred;
+    };
     if (dmc && request.thin) {
-        ThinSearchOptions to;
-        to.iso = report.iso;
-        to.steps = request.searchSteps;
-        to.cancel = request.cancel;
         ThinSearchStats ts;
-        thinSearch(field, lattice, to, deformation, &ts);
+        thinSearch(field, lattice, to, deformation, &ts, &crowded);
         activateCellsAroundMovedNodes(lattice, deformation);
         report.hiddenCells = ts.hiddenCells;
         report.thinCandidates = ts.candidates;
@@ -72,6 +80,8 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.thinNodesMoved = ts.nodesMoved;
         report.thinEdgesSplit = ts.edgesSplit;
         report.secondsThin = ts.seconds;
+        // Without the sharp pass nothing moves after it: centred before the surface is built.
+        if (!request.sharp) centre();
     }
 
     SurfaceOptions so;
@@ -90,13 +100,16 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         sh.cancel = request.cancel;
         SharpStats ss;
         placeSharpFeatures(field, lattice, *surface, sh, deformation, &ss);
+        const std::vector<Vec3i> centred = request.thin ? centre() : std::vector<Vec3i>();
         const auto t = std::chrono::steady_clock::now();
-        if (ss.flipped > 0 || ss.unhung > 0) {
-            // Nodes changed side: cell cases changed around them. The leaves there are computed
-            // again (or, for tests, the whole surface).
+        if (ss.flipped > 0 || ss.unhung > 0 || !centred.empty()) {
+            // Nodes changed side: cell cases changed around them; centred nodes moved their
+            // edges. The leaves there are computed again (or, for tests, the whole surface).
             activateCellsAround(lattice, ss.changedNodes);
             if (request.patchAfterFlips) {
-                surface->rebuildAround(ss.changedNodes, deformation);
+                std::vector<Vec3i> changed = ss.changedNodes;
+                changed.insert(changed.end(), centred.begin(), centred.end());
+                surface->rebuildAround(changed, deformation);
                 surface->moveCrossingsToFeatureNodes(deformation);
             } else {
                 so.normals = false;

@@ -57,6 +57,7 @@ struct MeshReport {
     std::uint64_t cellsExamined = 0, cellsActive = 0, cellsWithSurface = 0;
     std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;
     std::uint64_t thinEdgesSplit = 0; // of the nodes moved, those an edge or face diagonal hid a part from
+    std::uint64_t thinNodesCentred = 0; // moved within their side to the middle of a thin part (centreThinParts)
     std::uint64_t sharpEdgeCells = 0, sharpCornerCells = 0, sharpRejected = 0, nodesOnEdges = 0, nodesOnCorners = 0;
     std::uint64_t nodesAlongEdges = 0; // of nodesOnEdges, placed between the cells' choices (second round)
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;

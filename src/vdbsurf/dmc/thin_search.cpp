@@ -9,6 +9,7 @@
 #include "vdbsurf/dmc/leaf_nodes.h"
 #include "vdbsurf/lattice/lattice.h"
 
+#include <Eigen/Dense>
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -48,12 +49,31 @@ bool separatesDiagonal(unsigned config) {
     return false;
 }
 
-// The corners of hidden cells (`hidden`) and of cells where marching cubes separates a diagonal
-// pair (`ambiguous`), each sorted and unique.
+// Could at least 4 of the six neighbours of the node at leaf-local (x, y, z) lie across from it?
+// Some cell around such a node holds two of them. Decided from the leaf's values where all six
+// were sampled, else left to centreThinParts.
+bool mayBeCrowded(const std::array<double, kLeafNodeCount>& vals, const std::array<std::uint8_t, kLeafNodeCount>& needed, int x, int y,
+                  int z, double iso, Inside side) {
+    if (x < 1 || y < 1 || z < 1 || x > kLeafNodesPerSide - 2 || y > kLeafNodesPerSide - 2 || z > kLeafNodesPerSide - 2) return true;
+    const bool inside = isInside(vals[std::size_t(leafNodeIndex(x, y, z))], iso, side);
+    int across = 0;
+    for (int k = 0; k < 6; ++k) {
+        const int s = k % 2 ? 1 : -1;
+        const int i = leafNodeIndex(x + (k / 2 == 0 ? s : 0), y + (k / 2 == 1 ? s : 0), z + (k / 2 == 2 ? s : 0));
+        if (!needed[std::size_t(i)]) return true;
+        across += isInside(vals[std::size_t(i)], iso, side) != inside;
+    }
+    return across >= 4;
+}
+
+// The corners of hidden cells (`hidden`), of cells where marching cubes separates a diagonal pair
+// (`ambiguous`), and nodes that may have at least 4 of their six neighbours across (`crowded`),
+// each sorted and unique.
 void classifyCells(const Field& field, const Lattice& lattice, double iso, const CancelToken* cancel, std::uint64_t& hiddenCells,
-                   std::vector<Coord>& hidden, std::vector<Coord>& ambiguous) {
+                   std::vector<Coord>& hidden, std::vector<Coord>& ambiguous, std::vector<Coord>& crowded) {
     openvdb::tree::LeafManager<const openvdb::MaskTree> leaves(*lattice.cells);
-    std::vector<std::vector<Coord>> perLeaf(leaves.leafCount()), ambiguousPerLeaf(leaves.leafCount());
+    std::vector<std::vector<Coord>> perLeaf(leaves.leafCount()), ambiguousPerLeaf(leaves.leafCount()),
+        crowdedPerLeaf(leaves.leafCount());
     std::vector<std::uint64_t> hiddenPerLeaf(leaves.leafCount(), 0);
     const Inside side = field.inside();
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
@@ -70,6 +90,15 @@ void classifyCells(const Field& field, const Lattice& lattice, double iso, const
                 unsigned config = 0;
                 for (int c = 0; c < 8; ++c)
                     if (isInside(vals[std::size_t(leafCornerIndex(it.pos(), c))], iso, side)) config |= 1u << c;
+                if (config != 0 && config != 255)
+                    for (int c = 0; c < 8; ++c) {
+                        const bool at = config >> c & 1u;
+                        const int across = int((config >> (c ^ 1) & 1u) != at) + int((config >> (c ^ 2) & 1u) != at) +
+                                           int((config >> (c ^ 4) & 1u) != at);
+                        const int cx = x + (c & 1), cy = y + ((c >> 1) & 1), cz = z + ((c >> 2) & 1);
+                        if (across >= 2 && mayBeCrowded(vals, needed, cx, cy, cz, iso, side))
+                            crowdedPerLeaf[li].push_back(o.offsetBy(cx, cy, cz));
+                    }
                 std::vector<Coord>* to = nullptr;
                 if (config == 0 || config == 255) {
                     ++hiddenPerLeaf[li];
@@ -84,7 +113,7 @@ void classifyCells(const Field& field, const Lattice& lattice, double iso, const
                 if (!to) continue;
                 for (int c = 0; c < 8; ++c) to->push_back(o.offsetBy(x + (c & 1), y + ((c >> 1) & 1), z + ((c >> 2) & 1)));
             }
-            for (auto* list : {&out, &ambiguousPerLeaf[li]}) {
+            for (auto* list : {&out, &ambiguousPerLeaf[li], &crowdedPerLeaf[li]}) {
                 std::sort(list->begin(), list->end());
                 list->erase(std::unique(list->begin(), list->end()), list->end());
             }
@@ -97,6 +126,7 @@ void classifyCells(const Field& field, const Lattice& lattice, double iso, const
     };
     gather(perLeaf, hidden);
     gather(ambiguousPerLeaf, ambiguous);
+    gather(crowdedPerLeaf, crowded);
     for (std::uint64_t n : hiddenPerLeaf) hiddenCells += n;
 }
 
@@ -190,6 +220,58 @@ public:
             if (dist < bestDistance) bestDistance = dist, best = i;
         }
         return placed(found[best]);
+    }
+
+    // The centroid of the samples of Ω strictly on the node's own side (`inside`), as an offset,
+    // if it lies on that side too (else the sample nearest to it) — where those samples are
+    // thin across two directions, as a wire's are: the second largest variance of their
+    // positions below 0.85 of a full cube's, h²/12 (a wire a cell thick: 0.75; the half of Ω
+    // on one side of a smooth surface through the node: 1, whatever its orientation).
+    std::optional<Vec3f> thinOwnSideCentroid(const Coord& n, bool inside, std::uint64_t& evaluated) const {
+        const Vec3d centre = mLattice.frame.nodeWorld(Vec3i(n.x(), n.y(), n.z()));
+        thread_local std::vector<Vec3d> points, own;
+        thread_local std::vector<double> values;
+        own.clear();
+        for (int d = 0; d < 8; ++d) {
+            const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
+            const Vec3d lo = centre + Vec3d(dx ? 0 : -mH / 2, dy ? 0 : -mH / 2, dz ? 0 : -mH / 2);
+            const Box3 octant{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)};
+            if (!mayBeOtherSide(!inside, mField.bounds(octant), mIso, mSide)) continue;
+            points.clear();
+            for (int pattern = 0; pattern < 2; ++pattern)
+                for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
+                    for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
+                        for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) points.push_back(centre + Vec3d(ox, oy, oz));
+            values.resize(points.size());
+            mField.values(octant, points.data(), points.size(), values.data());
+            evaluated += points.size();
+            for (std::size_t i = 0; i < points.size(); ++i)
+                if (otherSide(!inside, values[i])) own.push_back(points[i]);
+        }
+        if (own.empty()) return std::nullopt;
+        Vec3d mean;
+        for (const Vec3d& p : own) mean += p;
+        mean = mean / double(own.size());
+        Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+        for (const Vec3d& p : own) {
+            const Eigen::Vector3d d(p.x - mean.x, p.y - mean.y, p.z - mean.z);
+            covariance += d * d.transpose();
+        }
+        covariance /= double(own.size());
+        const Eigen::Vector3d variances = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance, Eigen::EigenvaluesOnly).eigenvalues();
+        if (variances[1] >= 0.85 * mH * mH / 12) return std::nullopt; // ascending: [1] is the second largest
+        auto placed = [&](const Vec3d& p) -> std::optional<Vec3f> {
+            const Vec3f off(p - centre);
+            return otherSide(!inside, mField.value(centre + Vec3d(off))) ? std::optional<Vec3f>(off) : std::nullopt;
+        };
+        if (auto move = placed(mean)) return move;
+        std::size_t best = 0;
+        double bestDistance = INFINITY;
+        for (std::size_t i = 0; i < own.size(); ++i) {
+            const Vec3d dv = own[i] - mean;
+            if (dot(dv, dv) < bestDistance) bestDistance = dot(dv, dv), best = i;
+        }
+        return placed(own[best]);
     }
 
     Inside side() const { return mSide; }
@@ -294,7 +376,7 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
 }
 
 void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
-                ThinSearchStats* stats) {
+                ThinSearchStats* stats, std::vector<Vec3i>* crowded) {
     const auto start = std::chrono::steady_clock::now();
     if (options.steps < 1 || options.steps > 64)
         throw Error("--search-steps", "must be between 1 and 64, not " + std::to_string(options.steps));
@@ -305,8 +387,13 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     const EdgeRuns edgeRuns(field, lattice, iso, options.steps);
 
     // A field whose bounds over a cell are its corners' range has nothing hidden inside a cell.
-    std::vector<Coord> candidates, ambiguous;
-    if (!field.cellBoundsAreCornerRange(frame)) classifyCells(field, lattice, iso, options.cancel, local.hiddenCells, candidates, ambiguous);
+    std::vector<Coord> candidates, ambiguous, crowdedNodes;
+    if (!field.cellBoundsAreCornerRange(frame))
+        classifyCells(field, lattice, iso, options.cancel, local.hiddenCells, candidates, ambiguous, crowdedNodes);
+    if (crowded) {
+        crowded->clear();
+        for (const Coord& c : crowdedNodes) crowded->emplace_back(c.x(), c.y(), c.z());
+    }
     local.candidates = candidates.size();
 
     // Phase 1: corners of hidden cells search the parts of their Ω that no corner represents.
@@ -608,6 +695,113 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         for (std::uint64_t n : bridgeSamples) *samplesOut += n;
     }
     return bridged;
+}
+
+} // namespace vdbsurf
+
+namespace vdbsurf {
+
+std::vector<Vec3i> centreThinParts(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,
+                                   LatticeDeformation& deformation, const std::vector<Vec3i>& crowded, std::uint64_t* samplesOut) {
+    const LatticeFrame& frame = lattice.frame;
+    const double iso = options.iso;
+    const Inside side = field.inside();
+    const OmegaSearch searcher(field, lattice, iso, options.steps);
+    const EdgeRuns edgeRuns(field, lattice, iso, options.steps);
+    struct Centring {
+        Coord node;
+        bool inside = false;
+        std::optional<Vec3f> offset;
+    };
+    std::vector<Centring> proposals(crowded.size());
+    tbb::enumerable_thread_specific<std::uint64_t> evaluations(0);
+    std::vector<Coord> centred; // in node order, as applied
+    auto isCentred = [&](const Coord& c) { return std::binary_search(centred.begin(), centred.end(), c); };
+    // Where the node at offset d from c stands now, and on which side (`around`: rest values of
+    // the 3x3x3 nodes centred on c); a centred node kept its side.
+    auto neighbourAt = [&](NodeStates& nodes, const Coord& c, const double* around, const Coord& d, bool& nbInside) {
+        const Coord nb = c + d;
+        openvdb::Vec3f off(0.0f);
+        nodes.offsets.probeValue(nb, off);
+        const bool restInside = isInside(around[local3(d.x(), d.y(), d.z())], iso, side);
+        nbInside = isCentred(nb) ? restInside : nodes.inside(nb, restInside);
+        return frame.nodeWorld(Vec3i(nb.x(), nb.y(), nb.z())) + Vec3d(off.x(), off.y(), off.z());
+    };
+    // Hidden runs on c's six edges with c at `at`.
+    auto hiddenOnEdges = [&](NodeStates& nodes, const Coord& c, const double* around, bool inside, const Vec3d& at, std::uint64_t& evaluated) {
+        std::size_t runs = 0;
+        std::uint64_t examined = 0;
+        for (int k = 0; k < 6; ++k) {
+            bool nbInside = false;
+            const Vec3d p = neighbourAt(nodes, c, around, axisStep(k / 2, k % 2 ? 1 : -1), nbInside);
+            runs += edgeRuns.hiddenRuns(at, p, inside, nbInside, examined, evaluated);
+        }
+        return runs;
+    };
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, crowded.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
+        NodeStates nodes(deformation);
+        double around[27];
+        std::uint64_t& evaluated = evaluations.local();
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+            const Coord c(crowded[i].x, crowded[i].y, crowded[i].z);
+            proposals[i].node = c;
+            // Nodes that moved (into thin parts, onto features) already stand where they should;
+            // nodes on the lattice's outer faces keep their place, as they keep their side.
+            if (nodes.offsets.isValueOn(c) || nodes.onSurface.isValueOn(c)) continue;
+            bool outer = false;
+            for (int k = 0; k < 6 && !outer; ++k) outer = !edgeRuns.validNode(c + axisStep(k / 2, k % 2 ? 1 : -1));
+            if (outer) continue;
+            field.sampleNodes(frame, Vec3i(c.x() - 1, c.y() - 1, c.z() - 1), {3, 3, 3}, nullptr, around);
+            const bool inside = isInside(around[13], iso, side);
+            int across = 0;
+            bool nextToFeature = false;
+            for (int k = 0; k < 6; ++k) {
+                const Coord d = axisStep(k / 2, k % 2 ? 1 : -1);
+                bool nbInside = false;
+                neighbourAt(nodes, c, around, d, nbInside);
+                across += nbInside != inside;
+                nextToFeature = nextToFeature || nodes.onSurface.isValueOn(c + d);
+            }
+            // Crossings on the edges to a node on a feature sit on that node: centring would not
+            // spread them.
+            if (across < 4 || nextToFeature) continue;
+            const std::optional<Vec3f> off = searcher.thinOwnSideCentroid(c, inside, evaluated);
+            if (!off) continue;
+            const Vec3d rest = frame.nodeWorld(Vec3i(c.x(), c.y(), c.z()));
+            if (hiddenOnEdges(nodes, c, around, inside, rest + Vec3d(*off), evaluated) >
+                hiddenOnEdges(nodes, c, around, inside, rest, evaluated))
+                continue;
+            proposals[i].inside = inside;
+            proposals[i].offset = off;
+        }
+    });
+    // Applied in node order; a node next to one centred before it is checked again with that
+    // one where it now stands (the edge between them moved at both ends).
+    openvdb::tree::ValueAccessor<OffsetTree> acc(*deformation.offsets);
+    std::uint64_t evaluated = 0;
+    for (const Centring& p : proposals) {
+        if (!p.offset) continue;
+        bool besideCentred = false;
+        for (int k = 0; k < 6; ++k) besideCentred = besideCentred || isCentred(p.node + axisStep(k / 2, k % 2 ? 1 : -1));
+        if (besideCentred) {
+            NodeStates nodes(deformation);
+            double around[27];
+            field.sampleNodes(frame, Vec3i(p.node.x() - 1, p.node.y() - 1, p.node.z() - 1), {3, 3, 3}, nullptr, around);
+            const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
+            if (hiddenOnEdges(nodes, p.node, around, p.inside, rest + Vec3d(*p.offset), evaluated) >
+                hiddenOnEdges(nodes, p.node, around, p.inside, rest, evaluated))
+                continue;
+        }
+        acc.setValue(p.node, openvdb::Vec3f(p.offset->x, p.offset->y, p.offset->z));
+        centred.push_back(p.node);
+    }
+    if (samplesOut) {
+        *samplesOut += evaluated;
+        for (std::uint64_t n : evaluations) *samplesOut += n;
+    }
+    std::vector<Vec3i> out;
+    for (const Coord& c : centred) out.emplace_back(c.x(), c.y(), c.z());
+    return out;
 }
 
 } // namespace vdbsurf
