@@ -118,8 +118,12 @@ public:
         if (runs.size() <= (insideA == insideB ? 1u : 2u)) return std::nullopt;
         // Ends that a bent path joins on their side lie in one piece of it: the run between is the
         // other side's surface bulging across the edge (a crack's slanted wall between two of its
-        // nodes), and a node moved into it would stand alone for a sliver of a thick part.
-        if (insideA == insideB && mRuns.bentPathJoins(pa, pb, insideA, evaluated)) return std::nullopt;
+        // nodes), and a node moved into it would stand alone for a sliver of a thick part. So do
+        // ends that a search over samples joins nearby where bent paths miss: a wire 1.5 voxels
+        // thick in a level set, one end barely inside at the wire's side, the other moved into its
+        // middle — moving the first out across the wire's surface cut the wire in two.
+        if (insideA == insideB && (mRuns.bentPathJoins(pa, pb, insideA, evaluated) || mRuns.joinedNearby(pa, pb, insideA, evaluated)))
+            return std::nullopt;
         // An end that has not moved goes into the run next to its own, when that run is inside the
         // edge (a part the edge hides), at the sample nearest the run's middle that its Ω holds —
         // if that leaves fewer hidden runs on its six edges than before and none more on any one,
