@@ -1,9 +1,10 @@
 // bench_thin: the quality bar of Deformed Marching Cubes on thin shapes. Each shape (a plate, a
-// rod and a spherical shell 0.3 H thick, and a 0.3 H gap through a ball, at random orientations)
-// is a level-set grid of voxel H/5; it is meshed at spacing H by volumeToMesh (on the grid
-// resampled to H, as vdb_tool would), vdbsurf's marching cubes and DMC, and at its own voxel
-// size by volumeToMesh as the fine reference. Every mesh is measured against the grid's own iso
-// surface with H as the unit: coverage within H, F-score at H/4, pieces, triangles. The bar:
+// rod and a spherical shell t thick, and a gap t wide through a ball, at random orientations, for
+// t in --widths: 0.3, 0.6 and 1 H by default) is a level-set grid of voxel H/5; it is meshed at
+// spacing H by volumeToMesh (on the grid resampled to H, as vdb_tool would), vdbsurf's marching
+// cubes and DMC, and at its own voxel size by volumeToMesh as the fine reference. Every mesh is
+// measured against the grid's own iso surface with H as the unit: coverage within H, F-score at
+// H/4, pieces, triangles. The bar:
 // DMC covers >= 99 %, its F-score is within 0.05 of the fine reference's, it has the shape's
 // number of pieces, and at most a tenth of the fine reference's triangles.
 #include "bench_support.h"
@@ -21,7 +22,9 @@
 #include <cmath>
 #include <functional>
 #include <iostream>
+#include <map>
 #include <random>
+#include <sstream>
 
 using namespace vdbsurf;
 
@@ -41,14 +44,17 @@ Vec3d randomUnit(std::mt19937& rng) {
     }
 }
 
-std::vector<Shape> thinShapes(double H, int trials) {
+// The shapes `width` (in units of H) thick; every width draws the same orientations.
+std::vector<Shape> thinShapes(double H, int trials, double width) {
     std::mt19937 rng(20261123);
     std::uniform_real_distribution<double> jitter(-0.5 * H, 0.5 * H);
-    const double t = 0.3 * H, R = 0.7;
+    const double t = width * H, R = 0.7;
     std::vector<Shape> out;
+    std::ostringstream w;
+    w << " (" << width << " H)";
     for (int trial = 0; trial < trials; ++trial) {
         const Vec3d n = randomUnit(rng), c(jitter(rng), jitter(rng), jitter(rng));
-        const std::string k = " " + std::to_string(trial + 1);
+        const std::string k = " " + std::to_string(trial + 1) + w.str();
         out.push_back({"plate" + k,
                        [=](const Vec3d& p) { return std::max(std::fabs(dot(n, p - c)) - t / 2, length(p - c) - R); }, 1});
         out.push_back({"rod" + k,
@@ -71,8 +77,10 @@ std::vector<Shape> thinShapes(double H, int trials) {
 int main(int argc, char** argv) {
     CLI::App app{"DMC vs volumeToMesh on thin shapes: quality at spacing H against a 5x finer grid"};
     int trials = 2;
+    std::vector<double> widths{0.3, 0.6, 1.0};
     std::string json;
     app.add_option("--trials", trials, "Random orientations per shape");
+    app.add_option("--widths", widths, "Thicknesses of the shapes, in lattice spacings H")->delimiter(',')->check(CLI::Range(0.05, 2.0));
     app.add_option("--json", json, "Write the results as JSON");
     CLI11_PARSE(app, argc, argv);
     ThreadLimit limit(0);
@@ -80,8 +88,14 @@ int main(int argc, char** argv) {
     const double H = 0.1, fine = H / 5;
     const Box3 box{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}};
     bench::Table table({"shape", "method", "spacing", "triangles", "vs fine", "pieces", "covers 1H", "F at H/4", "seconds"});
+    std::map<double, std::pair<int, int>> byWidth; // passed, total
     int passed = 0, total = 0;
-    for (const Shape& s : thinShapes(H, trials)) {
+    std::vector<std::pair<Shape, double>> shapes;
+    for (double w : widths)
+        for (Shape& s : thinShapes(H, trials, w)) shapes.emplace_back(std::move(s), w);
+    for (const auto& entry : shapes) {
+        const Shape& s = entry.first;
+        const double width = entry.second;
         const GridBasePtr grid = levelSetFromDistance(s.sdf, box, fine);
         const GridField field(grid, s.name);
         CompareRequest req;
@@ -98,7 +112,7 @@ int main(int argc, char** argv) {
             table.add({s.name, method, spacing, std::to_string(tris), bench::fixed(double(tris) / double(refTriangles), 3),
                        std::to_string(pieces) + "/" + std::to_string(s.pieces), bench::fixed(q.coverageOne, 3),
                        bench::fixed(q.fScoreQuarter, 3), bench::fixed(seconds, 3)},
-                      {{"shape", s.name}, {"method", method}, {"spacing", spacing}, {"triangles", tris},
+                      {{"shape", s.name}, {"width_h", width}, {"method", method}, {"spacing", spacing}, {"triangles", tris},
                        {"triangles_vs_fine", double(tris) / double(refTriangles)}, {"pieces", pieces}, {"expected_pieces", s.pieces},
                        {"coverage_one_h", q.coverageOne}, {"f_score_quarter_h", q.fScoreQuarter}, {"seconds", seconds}});
         };
@@ -113,13 +127,22 @@ int main(int argc, char** argv) {
                             dmc->components == s.pieces && dmc->triangles * 10 <= refTriangles && dmc->topology.closedManifoldOriented();
             passed += ok;
             ++total;
+            byWidth[width].first += ok;
+            ++byWidth[width].second;
         }
     }
-    std::cout << "bench_thin: shapes 0.3 H thick on a level set of voxel H/5 (H = " << H << "), " << limit.threads() << " threads\n";
+    std::cout << "bench_thin: thin shapes on level sets of voxel H/5 (H = " << H << "), " << trials << " orientations each, "
+              << limit.threads() << " threads\n";
     table.print();
     std::cout << "DMC meets the bar (covers >= 0.99, F within 0.05 of the fine reference, the shape's pieces, closed and manifold,"
                  " <= 1/10 of its triangles) on "
-              << passed << " of " << total << " shapes\n";
-    if (!json.empty()) table.writeJson(json, "bench_thin", {{"H", H}, {"fine", fine}, {"passed", passed}, {"total", total}});
+              << passed << " of " << total << " shapes";
+    const char* separator = " (";
+    for (const auto& [w, counts] : byWidth) {
+        std::cout << separator << counts.first << " of " << counts.second << " at " << w << " H";
+        separator = ", ";
+    }
+    std::cout << (byWidth.empty() ? "" : ")") << "\n";
+    if (!json.empty()) table.writeJson(json, "bench_thin", {{"H", H}, {"fine", fine}, {"widths", widths}, {"passed", passed}, {"total", total}});
     return 0;
 }

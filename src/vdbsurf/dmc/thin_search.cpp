@@ -697,10 +697,6 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     return bridged;
 }
 
-} // namespace vdbsurf
-
-namespace vdbsurf {
-
 std::vector<Vec3i> centreThinParts(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,
                                    LatticeDeformation& deformation, const std::vector<Vec3i>& crowded, std::uint64_t* samplesOut) {
     const LatticeFrame& frame = lattice.frame;

@@ -10,7 +10,9 @@
 // undeformed lattice only, so the search runs in parallel and does not depend on thread order.
 // A move must keep what the node's edges show (edge_runs.h); the moves are applied in node order
 // and checked again where a node near them moved before (two nodes of a crack must not move into
-// the two halves beside them at once), which is order-free too.
+// the two halves beside them at once), which is order-free too. Last, after the sharp pass,
+// nodes that are all the lattice has of a wire's cross-section move to its middle, on their own
+// side (centreThinParts).
 //
 // Sampling: a body-centred cubic pattern of spacing a = h/m with m = ceil(k·√5/2) per axis,
 // aligned so that the samples of all Ω together form one global lattice. Its covering radius
@@ -60,7 +62,9 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
 // polygons between them cut through the part (wires 0.8-1 cell thick at random orientations:
 // F-score at H/4 down to 0.78). Such a node, if it did not move before and no neighbour is on a
 // feature, moves within its Ω to the centroid of the samples of its own side there, keeping its
-// side (cell cases do not change), unless one of its edges would then hide more than it did.
+// side (cell cases do not change), where those samples are thin across two directions (a smooth
+// surface passing the node leaves half of Ω on its side, which is not), unless one of its edges
+// would then hide more than it did.
 // Only the nodes in `crowded` (from thinSearch) are examined, so a lattice whose cells hide
 // nothing (a grid at its own voxel size) is meshed as marching cubes meshes it. Decided with
 // the nodes as they stood, applied in node order (a node beside one centred before it is
