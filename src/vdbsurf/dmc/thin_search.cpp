@@ -50,18 +50,18 @@ bool separatesDiagonal(unsigned config) {
 }
 
 // Could at least 4 of the six neighbours of the node at leaf-local (x, y, z) lie across from it?
-// Some cell around such a node holds two of them. Decided from the leaf's values where all six
-// were sampled, else left to centreThinParts.
+// Counted from the leaf's values; a neighbour beyond the leaf's nodes, or not sampled, may be
+// (centreThinParts decides).
 bool mayBeCrowded(const std::array<double, kLeafNodeCount>& vals, const std::array<std::uint8_t, kLeafNodeCount>& needed, int x, int y,
                   int z, double iso, Inside side) {
-    if (x < 1 || y < 1 || z < 1 || x > kLeafNodesPerSide - 2 || y > kLeafNodesPerSide - 2 || z > kLeafNodesPerSide - 2) return true;
     const bool inside = isInside(vals[std::size_t(leafNodeIndex(x, y, z))], iso, side);
     int across = 0;
     for (int k = 0; k < 6; ++k) {
         const int s = k % 2 ? 1 : -1;
-        const int i = leafNodeIndex(x + (k / 2 == 0 ? s : 0), y + (k / 2 == 1 ? s : 0), z + (k / 2 == 2 ? s : 0));
-        if (!needed[std::size_t(i)]) return true;
-        across += isInside(vals[std::size_t(i)], iso, side) != inside;
+        const int nx = x + (k / 2 == 0 ? s : 0), ny = y + (k / 2 == 1 ? s : 0), nz = z + (k / 2 == 2 ? s : 0);
+        const bool beyond = nx < 0 || ny < 0 || nz < 0 || nx >= kLeafNodesPerSide || ny >= kLeafNodesPerSide || nz >= kLeafNodesPerSide;
+        const int i = beyond ? 0 : leafNodeIndex(nx, ny, nz);
+        across += beyond || !needed[std::size_t(i)] || isInside(vals[std::size_t(i)], iso, side) != inside;
     }
     return across >= 4;
 }
