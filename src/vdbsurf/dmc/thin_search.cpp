@@ -172,8 +172,9 @@ public:
                 }
                 if (represented) continue;
             }
-            const Vec3d lo = centre + Vec3d(dx ? 0 : -mH / 2, dy ? 0 : -mH / 2, dz ? 0 : -mH / 2);
-            if (!straddles(mField.bounds(Box3{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)}), mIso)) continue;
+            const Box3 octant = octantBox(centre, d);
+            if (!straddles(mField.bounds(octant), mIso)) continue;
+            const Vec3d& lo = octant.min;
             // The octant's eighths that may hold a value on the other side: samples elsewhere
             // cannot, so skipping them changes nothing found (and saves most evaluations of costly
             // formulas, whose bounds over a whole octant are loose).
@@ -183,43 +184,9 @@ public:
                 const Vec3d sub = lo + Vec3d(k & 1 ? mH / 4 : 0, k & 2 ? mH / 4 : 0, k & 4 ? mH / 4 : 0);
                 eighth[k] = mayBeOtherSide(nodeInside, mField.bounds(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}), mIso, mSide);
             }
-            // The octant's samples, evaluated together (a grid reads the voxels under the octant
-            // once), in the order they are listed.
-            thread_local std::vector<Vec3d> points;
-            thread_local std::vector<double> values;
-            points.clear();
-            for (int pattern = 0; pattern < 2; ++pattern)
-                for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
-                    for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
-                        for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) {
-                            const Vec3d p = centre + Vec3d(ox, oy, oz);
-                            if (eighth[(p.x >= mid.x) | (p.y >= mid.y) << 1 | (p.z >= mid.z) << 2]) points.push_back(p);
-                        }
-            values.resize(points.size());
-            mField.values(Box3{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)}, points.data(), points.size(), values.data());
-            evaluated += points.size();
-            for (std::size_t i = 0; i < points.size(); ++i)
-                if (otherSide(nodeInside, values[i])) found.push_back(points[i]);
+            collectOctant(centre, d, eighth, mid, nodeInside, evaluated, found);
         }
-        if (found.empty()) return std::nullopt;
-        // The node goes where the lattice will evaluate it (a float offset from its place).
-        auto placed = [&](const Vec3d& p) -> std::optional<Vec3f> {
-            const Vec3f off(p - centre);
-            return otherSide(nodeInside, mField.value(centre + Vec3d(off))) ? std::optional<Vec3f>(off) : std::nullopt;
-        };
-        Vec3d mean;
-        for (const Vec3d& p : found) mean += p;
-        mean = mean / double(found.size());
-        if (auto move = placed(mean)) return move;
-        // The centroid of a curved or split part can fall outside it: take the sample nearest to it.
-        std::size_t best = 0;
-        double bestDistance = INFINITY;
-        for (std::size_t i = 0; i < found.size(); ++i) {
-            const Vec3d dv = found[i] - mean;
-            const double dist = dot(dv, dv);
-            if (dist < bestDistance) bestDistance = dist, best = i;
-        }
-        return placed(found[best]);
+        return placeAtCentroid(centre, found, nodeInside);
     }
 
     // The centroid of the samples of Ω strictly on the node's own side (`inside`), as an offset,
@@ -229,25 +196,12 @@ public:
     // on one side of a smooth surface through the node: 1, whatever its orientation).
     std::optional<Vec3f> thinOwnSideCentroid(const Coord& n, bool inside, std::uint64_t& evaluated) const {
         const Vec3d centre = mLattice.frame.nodeWorld(Vec3i(n.x(), n.y(), n.z()));
-        thread_local std::vector<Vec3d> points, own;
-        thread_local std::vector<double> values;
+        static constexpr bool kEvery[8] = {true, true, true, true, true, true, true, true};
+        thread_local std::vector<Vec3d> own;
         own.clear();
-        for (int d = 0; d < 8; ++d) {
-            const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
-            const Vec3d lo = centre + Vec3d(dx ? 0 : -mH / 2, dy ? 0 : -mH / 2, dz ? 0 : -mH / 2);
-            const Box3 octant{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)};
-            if (!mayBeOtherSide(!inside, mField.bounds(octant), mIso, mSide)) continue;
-            points.clear();
-            for (int pattern = 0; pattern < 2; ++pattern)
-                for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
-                    for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
-                        for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) points.push_back(centre + Vec3d(ox, oy, oz));
-            values.resize(points.size());
-            mField.values(octant, points.data(), points.size(), values.data());
-            evaluated += points.size();
-            for (std::size_t i = 0; i < points.size(); ++i)
-                if (otherSide(!inside, values[i])) own.push_back(points[i]);
-        }
+        for (int d = 0; d < 8; ++d)
+            if (mayBeOtherSide(!inside, mField.bounds(octantBox(centre, d)), mIso, mSide))
+                collectOctant(centre, d, kEvery, centre, !inside, evaluated, own);
         if (own.empty()) return std::nullopt;
         Vec3d mean;
         for (const Vec3d& p : own) mean += p;
@@ -260,24 +214,66 @@ public:
         covariance /= double(own.size());
         const Eigen::Vector3d variances = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance, Eigen::EigenvaluesOnly).eigenvalues();
         if (variances[1] >= 0.85 * mH * mH / 12) return std::nullopt; // ascending: [1] is the second largest
-        auto placed = [&](const Vec3d& p) -> std::optional<Vec3f> {
-            const Vec3f off(p - centre);
-            return otherSide(!inside, mField.value(centre + Vec3d(off))) ? std::optional<Vec3f>(off) : std::nullopt;
-        };
-        if (auto move = placed(mean)) return move;
-        std::size_t best = 0;
-        double bestDistance = INFINITY;
-        for (std::size_t i = 0; i < own.size(); ++i) {
-            const Vec3d dv = own[i] - mean;
-            if (dot(dv, dv) < bestDistance) bestDistance = dot(dv, dv), best = i;
-        }
-        return placed(own[best]);
+        return placeAtCentroid(centre, own, !inside);
     }
 
     Inside side() const { return mSide; }
     double iso() const { return mIso; }
 
 private:
+    // Octant d (bit 0: x, 1: y, 2: z above the centre) of the Ω around `centre`.
+    Box3 octantBox(const Vec3d& centre, int d) const {
+        const Vec3d lo = centre + Vec3d(d & 1 ? 0 : -mH / 2, d & 2 ? 0 : -mH / 2, d & 4 ? 0 : -mH / 2);
+        return Box3{lo, lo + Vec3d(mH / 2, mH / 2, mH / 2)};
+    }
+
+    // Appends to `out` the samples of octant d strictly on the other side from a node whose side
+    // is `from`, of those in the octant's eighths that `eighth` keeps (split at `mid`). Evaluated
+    // together (a grid reads the voxels under the octant once), in the order they are listed.
+    void collectOctant(const Vec3d& centre, int d, const bool* eighth, const Vec3d& mid, bool from, std::uint64_t& evaluated,
+                       std::vector<Vec3d>& out) const {
+        const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
+        thread_local std::vector<Vec3d> points;
+        thread_local std::vector<double> values;
+        points.clear();
+        for (int pattern = 0; pattern < 2; ++pattern)
+            for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
+                for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
+                    for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) {
+                        const Vec3d p = centre + Vec3d(ox, oy, oz);
+                        if (eighth[(p.x >= mid.x) | (p.y >= mid.y) << 1 | (p.z >= mid.z) << 2]) points.push_back(p);
+                    }
+        values.resize(points.size());
+        mField.values(octantBox(centre, d), points.data(), points.size(), values.data());
+        evaluated += points.size();
+        for (std::size_t i = 0; i < points.size(); ++i)
+            if (otherSide(from, values[i])) out.push_back(points[i]);
+    }
+
+    // The offset from `centre` to the centroid of `samples` (strictly on the other side from a
+    // node whose side is `from`), if the lattice, evaluating it as a float offset, finds it on
+    // that side too; else to the sample nearest the centroid (the centroid of a curved or split
+    // part can fall outside it), if that holds.
+    std::optional<Vec3f> placeAtCentroid(const Vec3d& centre, const std::vector<Vec3d>& samples, bool from) const {
+        if (samples.empty()) return std::nullopt;
+        auto placed = [&](const Vec3d& p) -> std::optional<Vec3f> {
+            const Vec3f off(p - centre);
+            return otherSide(from, mField.value(centre + Vec3d(off))) ? std::optional<Vec3f>(off) : std::nullopt;
+        };
+        Vec3d mean;
+        for (const Vec3d& p : samples) mean += p;
+        mean = mean / double(samples.size());
+        if (auto move = placed(mean)) return move;
+        std::size_t best = 0;
+        double bestDistance = INFINITY;
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+            const Vec3d dv = samples[i] - mean;
+            const double dist = dot(dv, dv);
+            if (dist < bestDistance) bestDistance = dist, best = i;
+        }
+        return placed(samples[best]);
+    }
+
     const Field& mField;
     const Lattice& mLattice;
     double mIso;
@@ -723,16 +719,19 @@ std::vector<Vec3i> centreThinParts(const Field& field, const Lattice& lattice, c
         nbInside = isCentred(nb) ? restInside : nodes.inside(nb, restInside);
         return frame.nodeWorld(Vec3i(nb.x(), nb.y(), nb.z())) + Vec3d(off.x(), off.y(), off.z());
     };
-    // Hidden runs on c's six edges with c at `at`.
-    auto hiddenOnEdges = [&](NodeStates& nodes, const Coord& c, const double* around, bool inside, const Vec3d& at, std::uint64_t& evaluated) {
-        std::size_t runs = 0;
+    // Do c's six edges hide no more runs with c moved by `off` than at rest?
+    auto edgesKeep = [&](NodeStates& nodes, const Coord& c, const double* around, bool inside, const Vec3f& off,
+                         std::uint64_t& evaluated) {
+        const Vec3d rest = frame.nodeWorld(Vec3i(c.x(), c.y(), c.z()));
+        std::size_t before = 0, after = 0;
         std::uint64_t examined = 0;
         for (int k = 0; k < 6; ++k) {
             bool nbInside = false;
             const Vec3d p = neighbourAt(nodes, c, around, axisStep(k / 2, k % 2 ? 1 : -1), nbInside);
-            runs += edgeRuns.hiddenRuns(at, p, inside, nbInside, examined, evaluated);
+            after += edgeRuns.hiddenRuns(rest + Vec3d(off), p, inside, nbInside, examined, evaluated);
+            before += edgeRuns.hiddenRuns(rest, p, inside, nbInside, examined, evaluated);
         }
-        return runs;
+        return after <= before;
     };
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, crowded.size(), 16), [&](const tbb::blocked_range<std::size_t>& r) {
         NodeStates nodes(deformation);
@@ -763,10 +762,7 @@ std::vector<Vec3i> centreThinParts(const Field& field, const Lattice& lattice, c
             if (across < 4 || nextToFeature) continue;
             const std::optional<Vec3f> off = searcher.thinOwnSideCentroid(c, inside, evaluated);
             if (!off) continue;
-            const Vec3d rest = frame.nodeWorld(Vec3i(c.x(), c.y(), c.z()));
-            if (hiddenOnEdges(nodes, c, around, inside, rest + Vec3d(*off), evaluated) >
-                hiddenOnEdges(nodes, c, around, inside, rest, evaluated))
-                continue;
+            if (!edgesKeep(nodes, c, around, inside, *off, evaluated)) continue;
             proposals[i].inside = inside;
             proposals[i].offset = off;
         }
@@ -783,10 +779,7 @@ std::vector<Vec3i> centreThinParts(const Field& field, const Lattice& lattice, c
             NodeStates nodes(deformation);
             double around[27];
             field.sampleNodes(frame, Vec3i(p.node.x() - 1, p.node.y() - 1, p.node.z() - 1), {3, 3, 3}, nullptr, around);
-            const Vec3d rest = frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z()));
-            if (hiddenOnEdges(nodes, p.node, around, p.inside, rest + Vec3d(*p.offset), evaluated) >
-                hiddenOnEdges(nodes, p.node, around, p.inside, rest, evaluated))
-                continue;
+            if (!edgesKeep(nodes, p.node, around, p.inside, *p.offset, evaluated)) continue;
         }
         acc.setValue(p.node, openvdb::Vec3f(p.offset->x, p.offset->y, p.offset->z));
         centred.push_back(p.node);
