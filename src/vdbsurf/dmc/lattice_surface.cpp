@@ -76,8 +76,8 @@ inline bool onMaxFace(const Coord& c, const CoordBBox& range) {
     return c.x() == range.max().x() || c.y() == range.max().y() || c.z() == range.max().z();
 }
 
-std::uint32_t loopFaces(std::uint32_t k, bool triangulate) { return k == 4 ? (triangulate ? 2 : 1) : k - 2; }
-std::uint32_t loopIndices(std::uint32_t k, bool triangulate) { return k == 4 ? (triangulate ? 6 : 4) : 3 * (k - 2); }
+std::uint32_t loopFaces(std::uint32_t k, bool triangulate, bool whole) { return whole ? 1 : k == 4 ? (triangulate ? 2 : 1) : k - 2; }
+std::uint32_t loopIndices(std::uint32_t k, bool triangulate, bool whole) { return whole ? k : k == 4 ? (triangulate ? 6 : 4) : 3 * (k - 2); }
 
 struct VertexRef {
     std::uint32_t leaf, local;
@@ -386,8 +386,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                         w.indexCount += 3u * cc.loopSize[l];
                         continue;
                     }
-                    w.faceCount += loopFaces(cc.loopSize[l], tri);
-                    w.indexCount += loopIndices(cc.loopSize[l], tri);
+                    w.faceCount += loopFaces(cc.loopSize[l], tri, options.keepLoops);
+                    w.indexCount += loopIndices(cc.loopSize[l], tri, options.keepLoops);
                 }
             }
             progress.advance();
@@ -598,7 +598,7 @@ Mesh LatticeSurface::mesh() {
     im.meshTaken = true;
     const auto start = std::chrono::steady_clock::now();
     const std::size_t leafCount = im.work.size();
-    const bool tri = im.options.triangulate;
+    const bool tri = im.options.triangulate, whole = im.options.keepLoops;
 
     // Prefix sums, in leaf order: this fixes every vertex and polygon number.
     std::uint32_t vtotal = 0, ftotal = 0, itotal = 0;
@@ -659,6 +659,9 @@ Mesh LatticeSurface::mesh() {
                         const std::uint32_t centre = nextCentre++;
                         mesh.points[centre] = Vec3f(c / double(k));
                         for (std::uint32_t i = 0; i < k; ++i) emit({ids[i], ids[(i + 1) % k], centre});
+                    } else if (whole) {
+                        for (std::uint32_t i = 0; i < k; ++i) mesh.indices[idx++] = ids[i];
+                        mesh.offsets[++f] = idx;
                     } else if (k == 3) emit({ids[0], ids[1], ids[2]});
                     else if (k == 4 && !tri) emit({ids[0], ids[1], ids[2], ids[3]});
                     else if (k == 4) {

@@ -29,6 +29,9 @@ struct LatticeDeformation;
 struct SurfaceOptions {
     double iso = 0;
     bool triangulate = false; // split quads (shorter diagonal): triangles only
+    // Emit each marching-cubes loop whole (quads and n-gons not split; triangulate ignored), for
+    // a step after the surface that splits them itself (the surface fit: finishPolygons).
+    bool keepLoops = false;
     bool normals = false;     // also compute the unit outward normal at every crossing
     // With normals: cells whose crossing normals provably all lie within this cosine of each
     // other are not sharp candidates (see node_gradients.h); 1 makes every cell a candidate.

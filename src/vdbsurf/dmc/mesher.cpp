@@ -5,6 +5,7 @@
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/sharp_features.h"
+#include "vdbsurf/dmc/surface_fit.h"
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
@@ -45,6 +46,9 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.frame = field.naturalFrame(report.voxelSize);
 
     const bool dmc = request.method == MeshMethod::Dmc;
+    const bool fit = dmc && request.fit && (request.thin || request.sharp) && !field.edgesAreLinear(report.frame);
+    if (fit && !(request.fitTolerance > 0 && request.fitTolerance <= 1))
+        throw Error("--fit-tolerance", "must be a number of cells in (0, 1], not " + messageNumber(request.fitTolerance));
     const openvdb::CoordBBox range = latticeCellRange(field, report.frame);
     // DMC needs every cell the surface may pass, also those whose corners miss it.
     Lattice lattice = buildLattice(field, report.frame, range, report.iso,
@@ -87,6 +91,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     SurfaceOptions so;
     so.iso = report.iso;
     so.triangulate = request.triangulate;
+    so.keepLoops = fit; // the fit finishes the polygons
     so.normals = dmc && request.sharp;
     so.sharpEdgeCosine = request.sharpEdge;
     so.cancel = request.cancel;
@@ -135,6 +140,20 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.collapsedPolygons = surface->stats().collapsedPolygons;
     report.splitVertices = surface->stats().splitVertices;
     report.secondsMesh = surface->stats().seconds;
+    surface.reset();
+    if (fit && !mesh.empty()) {
+        SurfaceFitOptions fo;
+        fo.iso = report.iso;
+        fo.h = report.frame.h;
+        fo.tolerance = request.fitTolerance;
+        fo.triangulate = request.triangulate;
+        fo.cancel = request.cancel;
+        SurfaceFitStats fs;
+        mesh = fitToSurface(field, std::move(mesh), fo, &fs);
+        report.fitEdgesSplit = fs.edgesSplit;
+        report.fitCentres = fs.centresAdded;
+        report.secondsFit = fs.seconds;
+    }
 
     if (mesh.empty() && !request.allowEmpty) {
         throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " on a lattice of spacing " +

@@ -31,6 +31,12 @@ struct MeshRequest {
     // Deformed Marching Cubes only.
     bool thin = true;  // search for parts thinner than a cell
     bool sharp = true; // place nodes on sharp edges and corners
+    // Add vertices where the mesh strays more than fitTolerance cells from the surface
+    // (dmc/surface_fit). Only on lattices coarser than the field's own detail (not a grid at its
+    // own voxel size), and only with the thin search or the sharp pass on: without both, DMC is
+    // plain marching cubes.
+    bool fit = true;
+    double fitTolerance = 0.2;
     int searchSteps = 5;
     double sharpEdge = 0.9, sharpCorner = 0.7;
     // After nodes flip onto feature tips, recompute only the lattice leaves around them (false:
@@ -62,7 +68,8 @@ struct MeshReport {
     std::uint64_t nodesAlongEdges = 0; // of nodesOnEdges, placed between the cells' choices (second round)
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
     std::uint64_t nodesFlipped = 0; // sharp-feature nodes that changed side onto a tip (cases changed around them)
-    double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0;
+    std::uint64_t fitEdgesSplit = 0, fitCentres = 0; // vertices the surface fit added on edges and in polygons
+    double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0, secondsFit = 0;
     std::size_t vertices = 0, triangles = 0, quads = 0, otherPolygons = 0;
 };
 

@@ -1,0 +1,297 @@
+#include "vdbsurf/dmc/surface_fit.h"
+
+#include "vdbsurf/core/cancel.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+#include <vector>
+
+namespace vdbsurf {
+
+namespace {
+
+// A projection that moves a point farther than this (in cells) has found another part of the
+// surface than the one the chord stands for.
+constexpr double kMaxProjection = 0.75;
+// The straight path from a point to its projection is sampled at steps this long (in cells): a
+// change of side before the end means the projection passed through a thin part or a gap to a
+// sheet beyond it.
+constexpr double kPathStep = 0.05;
+// Newton steps onto the surface: at most this many, done when a step is below kConverged cells,
+// accepted when the value lies within kOnSurface cells (|f - iso| / |grad f|) of the iso value.
+constexpr int kNewtonSteps = 8;
+constexpr double kConverged = 1e-6, kOnSurface = 1e-4;
+// On a smooth surface the point between two others has a normal halfway between theirs (an
+// angle of about θ/2 to each, θ being theirs); at a crease it has one face's normal (θ to the
+// other). A split point must keep within this share of θ of both ends.
+constexpr double kBetweenShare = 0.75;
+
+using EdgeKey = std::uint64_t;
+
+EdgeKey edgeKey(std::uint32_t a, std::uint32_t b) {
+    return (EdgeKey(std::min(a, b)) << 32) | EdgeKey(std::max(a, b));
+}
+
+struct SplitEdge {
+    EdgeKey key;
+    Vec3f point;
+};
+
+class Fitter {
+public:
+    Fitter(const Field& field, const SurfaceFitOptions& o) : mField(field), mIso(o.iso), mH(o.h), mTolerance(o.tolerance) {}
+
+    // Is p farther from the surface than the tolerance (first-order distance |f - iso| / |grad f|)?
+    bool strays(const Vec3d& p) const {
+        Vec3d g;
+        const double v = mField.valueAndGradient(p, g);
+        const double len = length(g);
+        if (!(len > 0) || !std::isfinite(len) || !std::isfinite(v)) return false;
+        return std::fabs(v - mIso) > mTolerance * mH * len;
+    }
+
+    // p moved onto the surface along the gradient (Newton's method), if that converges nearby
+    // without crossing the surface on the way.
+    bool project(Vec3d& p) const {
+        Vec3d q = p;
+        for (int i = 0; i < kNewtonSteps; ++i) {
+            Vec3d g;
+            const double v = mField.valueAndGradient(q, g);
+            const double gg = dot(g, g);
+            if (!(gg > 0) || !std::isfinite(gg)) return false;
+            const Vec3d step = g * ((v - mIso) / gg);
+            q = q - step;
+            if (length(step) < kConverged * mH) break;
+        }
+        Vec3d g;
+        const double v = mField.valueAndGradient(q, g);
+        if (!std::isfinite(v) || !(std::fabs(v - mIso) <= kOnSurface * mH * length(g))) return false;
+        const double moved = length(q - p);
+        if (!(moved <= kMaxProjection * mH)) return false;
+        const bool above = mField.value(p) > mIso;
+        const int steps = int(std::ceil(moved / (kPathStep * mH)));
+        for (int i = 1; i < steps; ++i)
+            if ((mField.value(p + (q - p) * (double(i) / steps)) > mIso) != above) return false;
+        p = q;
+        return true;
+    }
+
+    // Unit gradient at p, or zero where there is none.
+    Vec3d normal(const Vec3d& p) const {
+        const Vec3d g = mField.gradient(p);
+        const double len = length(g);
+        return len > 0 && std::isfinite(len) ? g / len : Vec3d();
+    }
+
+    // The point on the surface that splits the edge a-b, if its midpoint strays and the surface
+    // between a and b is smooth (not a crease, where the projection would land on one face).
+    bool splitPoint(const Vec3d& a, const Vec3d& b, Vec3d& out) const {
+        Vec3d p = (a + b) * 0.5;
+        if (!strays(p) || !project(p)) return false;
+        const Vec3d na = normal(a), nb = normal(b), np = normal(p);
+        if (dot(na, na) == 0 || dot(nb, nb) == 0 || dot(np, np) == 0) return false;
+        const double need = std::cos(kBetweenShare * std::acos(std::clamp(dot(na, nb), -1.0, 1.0)));
+        if (std::min(dot(np, na), dot(np, nb)) < need) return false;
+        out = p;
+        return true;
+    }
+
+    // Does the fan of triangles (ring[j], ring[j + 1], c) face the way the surface does at its
+    // corners, with the ring's own orientation against the gradients deciding which way is out?
+    bool fanFits(const std::vector<Vec3d>& ring, const Vec3d& c) const {
+        const std::size_t n = ring.size();
+        std::vector<Vec3d> normals(n);
+        Vec3d newell, sum;
+        for (std::size_t j = 0; j < n; ++j) {
+            normals[j] = normal(ring[j]);
+            newell += cross(ring[j], ring[(j + 1) % n]);
+            sum += normals[j];
+        }
+        const Vec3d nc = normal(c);
+        const double agree = dot(newell, sum);
+        if (!(std::fabs(agree) > 0)) return false;
+        const double out = agree > 0 ? 1.0 : -1.0;
+        for (std::size_t j = 0; j < n; ++j) {
+            const std::size_t k = (j + 1) % n;
+            const Vec3d t = cross(ring[k] - ring[j], c - ring[j]);
+            if (!(dot(t, (normals[j] + normals[k] + nc) * out) > 0)) return false;
+        }
+        return true;
+    }
+
+private:
+    const Field& mField;
+    double mIso, mH, mTolerance;
+};
+
+// What becomes of a polygon: kept, a triangle split in two at its one split edge, or a fan
+// round a centre vertex.
+enum class Kind : std::uint8_t { Kept, TwoTriangles, Fan };
+
+} // namespace
+
+Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& options, SurfaceFitStats* stats) {
+    const auto start = std::chrono::steady_clock::now();
+    const Fitter fitter(field, options);
+    const std::size_t polygons = mesh.polygonCount();
+    auto point = [&](std::uint32_t v) { return Vec3d(mesh.points[v]); };
+    auto checkCancel = [&] {
+        if (options.cancel) options.cancel->check();
+    };
+
+    // Edges: each decided once, by a polygon that runs it from its lower to its higher vertex
+    // (in a closed oriented mesh exactly one of its two polygons; an edge no polygon runs so is
+    // on the mesh's border with its one polygon running it the other way, and is left whole).
+    tbb::enumerable_thread_specific<std::vector<SplitEdge>> found;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        checkCancel();
+        std::vector<SplitEdge>& local = found.local();
+        for (std::size_t p = r.begin(); p < r.end(); ++p) {
+            const std::uint32_t* q = mesh.polygon(p);
+            const std::uint32_t k = mesh.polygonSize(p);
+            for (std::uint32_t j = 0; j < k; ++j) {
+                const std::uint32_t a = q[j], b = q[(j + 1) % k];
+                if (!(a < b)) continue;
+                Vec3d s;
+                if (fitter.splitPoint(point(a), point(b), s)) local.push_back({edgeKey(a, b), Vec3f(s)});
+            }
+        }
+    });
+    std::vector<SplitEdge> splits;
+    for (const auto& l : found) splits.insert(splits.end(), l.begin(), l.end());
+    tbb::parallel_sort(splits.begin(), splits.end(), [](const SplitEdge& x, const SplitEdge& y) { return x.key < y.key; });
+    // (Two polygons running one edge the same way decide it alike: the same key twice.)
+    splits.erase(std::unique(splits.begin(), splits.end(), [](const SplitEdge& x, const SplitEdge& y) { return x.key == y.key; }),
+                 splits.end());
+    const std::uint32_t firstSplit = std::uint32_t(mesh.points.size());
+    const std::uint32_t noSplit = ~std::uint32_t(0);
+    auto splitVertex = [&](std::uint32_t a, std::uint32_t b) {
+        if (splits.empty()) return noSplit;
+        const EdgeKey key = edgeKey(a, b);
+        const auto it = std::lower_bound(splits.begin(), splits.end(), key, [](const SplitEdge& s, EdgeKey k) { return s.key < k; });
+        return it != splits.end() && it->key == key ? firstSplit + std::uint32_t(it - splits.begin()) : noSplit;
+    };
+    // The polygon's corners with the split vertices of its edges between them.
+    auto ringOf = [&](std::size_t p, std::vector<std::uint32_t>& ring) {
+        const std::uint32_t* q = mesh.polygon(p);
+        const std::uint32_t k = mesh.polygonSize(p);
+        ring.clear();
+        for (std::uint32_t j = 0; j < k; ++j) {
+            ring.push_back(q[j]);
+            const std::uint32_t s = splitVertex(q[j], q[(j + 1) % k]);
+            if (s != noSplit) ring.push_back(s);
+        }
+    };
+    auto ringPoint = [&](std::uint32_t v) { return v < firstSplit ? point(v) : Vec3d(splits[v - firstSplit].point); };
+
+    // Polygons: a centre on the surface where the middle strays and the fan round it fits the
+    // surface; where edges were split and that fails, the centre of the ring (fanned from a
+    // corner, the split vertex would make a sliver standing across the polygon).
+    std::vector<Kind> kind(polygons, Kind::Kept);
+    std::vector<Vec3f> centre(polygons);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        checkCancel();
+        std::vector<std::uint32_t> ring;
+        std::vector<Vec3d> at;
+        for (std::size_t p = r.begin(); p < r.end(); ++p) {
+            ringOf(p, ring);
+            const std::size_t k = mesh.polygonSize(p);
+            const bool split = ring.size() > k;
+            if (k == 3 && ring.size() == 4) {
+                kind[p] = Kind::TwoTriangles;
+                continue;
+            }
+            if (ring.size() <= 3) continue;
+            at.resize(ring.size());
+            Vec3d mean;
+            for (std::size_t j = 0; j < ring.size(); ++j) mean += (at[j] = ringPoint(ring[j]));
+            mean = mean / double(ring.size());
+            Vec3d c = mean;
+            const bool fitted = fitter.strays(c) && fitter.project(c) && fitter.fanFits(at, c);
+            if (fitted || split) {
+                kind[p] = Kind::Fan;
+                centre[p] = Vec3f(fitted ? c : mean);
+            }
+        }
+    });
+    checkCancel();
+
+    std::uint64_t centres = 0;
+    std::vector<std::uint32_t> firstPolygon(polygons + 1), firstIndex(polygons + 1), centreVertex(polygons, noSplit);
+    for (std::size_t p = 0; p < polygons; ++p) {
+        const std::uint32_t k = mesh.polygonSize(p);
+        std::uint32_t outPolygons = 1, outIndices = k;
+        if (kind[p] == Kind::TwoTriangles) {
+            outPolygons = 2, outIndices = 6;
+        } else if (kind[p] == Kind::Fan) {
+            // The ring's size: the corners and the split vertices between them.
+            std::uint32_t n = k;
+            const std::uint32_t* q = mesh.polygon(p);
+            for (std::uint32_t j = 0; j < k; ++j) n += splitVertex(q[j], q[(j + 1) % k]) != noSplit;
+            outPolygons = n, outIndices = 3 * n;
+            centreVertex[p] = firstSplit + std::uint32_t(splits.size() + centres++);
+        } else if (k > 4 || (k == 4 && options.triangulate)) {
+            outPolygons = k - 2, outIndices = 3 * (k - 2);
+        }
+        firstPolygon[p + 1] = firstPolygon[p] + outPolygons;
+        firstIndex[p + 1] = firstIndex[p] + outIndices;
+    }
+    if (stats) {
+        stats->edgesSplit = splits.size();
+        stats->centresAdded = centres;
+    }
+
+    Mesh out;
+    out.points.reserve(mesh.points.size() + splits.size() + centres);
+    out.points = mesh.points;
+    for (const SplitEdge& s : splits) out.points.push_back(s.point);
+    for (std::size_t p = 0; p < polygons; ++p)
+        if (centreVertex[p] != noSplit) out.points.push_back(centre[p]);
+    out.offsets.assign(firstPolygon[polygons] + 1, 0);
+    out.indices.resize(firstIndex[polygons]);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+        std::vector<std::uint32_t> ring;
+        for (std::size_t p = r.begin(); p < r.end(); ++p) {
+            std::uint32_t poly = firstPolygon[p], index = firstIndex[p];
+            auto emit = [&](std::initializer_list<std::uint32_t> vs) {
+                for (std::uint32_t v : vs) out.indices[index++] = v;
+                out.offsets[++poly] = index;
+            };
+            if (kind[p] == Kind::Kept) {
+                const std::uint32_t* q = mesh.polygon(p);
+                const std::uint32_t k = mesh.polygonSize(p);
+                if (k == 4 && options.triangulate) {
+                    const Vec3d d02 = point(q[0]) - point(q[2]), d13 = point(q[1]) - point(q[3]);
+                    if (dot(d02, d02) <= dot(d13, d13)) emit({q[0], q[1], q[2]}), emit({q[0], q[2], q[3]});
+                    else emit({q[0], q[1], q[3]}), emit({q[1], q[2], q[3]});
+                } else if (k > 4) {
+                    for (std::uint32_t j = 1; j + 1 < k; ++j) emit({q[0], q[j], q[j + 1]});
+                } else {
+                    for (std::uint32_t j = 0; j < k; ++j) out.indices[index++] = q[j];
+                    out.offsets[++poly] = index;
+                }
+                continue;
+            }
+            ringOf(p, ring);
+            if (kind[p] == Kind::TwoTriangles) {
+                std::size_t m = 0;
+                while (ring[m] < firstSplit) ++m;
+                const std::uint32_t split = ring[m], b = ring[(m + 1) % 4], c = ring[(m + 2) % 4], a = ring[(m + 3) % 4];
+                emit({a, split, c});
+                emit({split, b, c});
+                continue;
+            }
+            for (std::size_t j = 0; j < ring.size(); ++j) emit({ring[j], ring[(j + 1) % ring.size()], centreVertex[p]});
+        }
+    });
+    if (stats) stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return out;
+}
+
+} // namespace vdbsurf
