@@ -76,8 +76,8 @@ inline bool onMaxFace(const Coord& c, const CoordBBox& range) {
     return c.x() == range.max().x() || c.y() == range.max().y() || c.z() == range.max().z();
 }
 
-std::uint32_t loopFaces(std::uint32_t k, bool triangulate, bool whole) { return whole ? 1 : k == 4 ? (triangulate ? 2 : 1) : k - 2; }
-std::uint32_t loopIndices(std::uint32_t k, bool triangulate, bool whole) { return whole ? k : k == 4 ? (triangulate ? 6 : 4) : 3 * (k - 2); }
+std::uint32_t loopFaces(std::uint32_t k, bool triangulate, bool whole) { return k == 4 ? (triangulate ? 2 : 1) : whole ? 1 : k - 2; }
+std::uint32_t loopIndices(std::uint32_t k, bool triangulate, bool whole) { return k == 4 ? (triangulate ? 6 : 4) : whole ? k : 3 * (k - 2); }
 
 struct VertexRef {
     std::uint32_t leaf, local;
@@ -592,7 +592,7 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
     return total;
 }
 
-Mesh LatticeSurface::mesh() {
+Mesh LatticeSurface::mesh(const std::function<void(Mesh&)>& beforeWeld) {
     Impl& im = *mImpl;
     if (im.meshTaken) throw std::logic_error("LatticeSurface::mesh called twice");
     im.meshTaken = true;
@@ -659,7 +659,7 @@ Mesh LatticeSurface::mesh() {
                         const std::uint32_t centre = nextCentre++;
                         mesh.points[centre] = Vec3f(c / double(k));
                         for (std::uint32_t i = 0; i < k; ++i) emit({ids[i], ids[(i + 1) % k], centre});
-                    } else if (whole) {
+                    } else if (whole && k > 4) {
                         for (std::uint32_t i = 0; i < k; ++i) mesh.indices[idx++] = ids[i];
                         mesh.offsets[++f] = idx;
                     } else if (k == 3) emit({ids[0], ids[1], ids[2]});
@@ -679,6 +679,7 @@ Mesh LatticeSurface::mesh() {
         }
     });
     if (im.options.cancel) im.options.cancel->check();
+    if (beforeWeld) beforeWeld(mesh);
     std::vector<std::pair<std::uint32_t, Vec3i>> atNode; // (vertex, node), in leaf order
     std::vector<std::uint8_t> rounded;                    // per entry of atNode: put there by rounding
     for (const LeafWork& w : im.work) {

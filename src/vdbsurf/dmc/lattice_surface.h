@@ -29,8 +29,8 @@ struct LatticeDeformation;
 struct SurfaceOptions {
     double iso = 0;
     bool triangulate = false; // split quads (shorter diagonal): triangles only
-    // Emit each marching-cubes loop whole (quads and n-gons not split; triangulate ignored), for
-    // a step after the surface that splits them itself (the surface fit: finishPolygons).
+    // Emit loops of five or more vertices whole (not fanned from a corner), for a step after the
+    // surface that fans them round a centre itself (the surface fit).
     bool keepLoops = false;
     bool normals = false;     // also compute the unit outward normal at every crossing
     // With normals: cells whose crossing normals provably all lie within this cosine of each
@@ -82,8 +82,10 @@ public:
     // Returns how many crossings moved.
     std::uint64_t moveCrossingsToFeatureNodes(const LatticeDeformation& deformation);
 
-    // The mesh: polygons oriented with normals from inside to outside.
-    Mesh mesh();
+    // The mesh: polygons oriented with normals from inside to outside. `beforeWeld`, if given,
+    // may refine the polygons before the crossings at nodes are welded (it keeps the vertices it
+    // is given, in place and numbered as they were, and only appends new ones).
+    Mesh mesh(const std::function<void(Mesh&)>& beforeWeld = {});
     const SurfaceStats& stats() const;
 
     struct Impl;

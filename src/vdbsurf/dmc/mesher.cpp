@@ -10,6 +10,7 @@
 #include "vdbsurf/lattice/lattice.h"
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <cmath>
 
@@ -91,7 +92,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     SurfaceOptions so;
     so.iso = report.iso;
     so.triangulate = request.triangulate;
-    so.keepLoops = fit; // the fit finishes the polygons
+    so.keepLoops = fit; // the fit fans them
     so.normals = dmc && request.sharp;
     so.sharpEdgeCosine = request.sharpEdge;
     so.cancel = request.cancel;
@@ -134,26 +135,28 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.secondsSharp = ss.seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
     }
     if (request.deformedLattice) request.deformedLattice(lattice, deformation);
-    Mesh mesh = surface->mesh();
+    // The fit refines marching cubes' polygons before the crossings at nodes are welded, so that
+    // the weld sees every edge the mesh will have.
+    std::function<void(Mesh&)> fitBeforeWeld;
+    if (fit)
+        fitBeforeWeld = [&](Mesh& m) {
+            SurfaceFitOptions fo;
+            fo.iso = report.iso;
+            fo.h = report.frame.h;
+            fo.tolerance = request.fitTolerance;
+            fo.cancel = request.cancel;
+            SurfaceFitStats fs;
+            m = fitToSurface(field, std::move(m), fo, &fs);
+            report.fitEdgesSplit = fs.edgesSplit;
+            report.fitCentres = fs.centresAdded;
+            report.secondsFit = fs.seconds;
+        };
+    Mesh mesh = surface->mesh(fitBeforeWeld);
     report.cellsWithSurface = surface->stats().cellsWithSurface;
     report.weldedVertices = surface->stats().weldedVertices;
     report.collapsedPolygons = surface->stats().collapsedPolygons;
     report.splitVertices = surface->stats().splitVertices;
     report.secondsMesh = surface->stats().seconds;
-    surface.reset();
-    if (fit && !mesh.empty()) {
-        SurfaceFitOptions fo;
-        fo.iso = report.iso;
-        fo.h = report.frame.h;
-        fo.tolerance = request.fitTolerance;
-        fo.triangulate = request.triangulate;
-        fo.cancel = request.cancel;
-        SurfaceFitStats fs;
-        mesh = fitToSurface(field, std::move(mesh), fo, &fs);
-        report.fitEdgesSplit = fs.edgesSplit;
-        report.fitCentres = fs.centresAdded;
-        report.secondsFit = fs.seconds;
-    }
 
     if (mesh.empty() && !request.allowEmpty) {
         throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " on a lattice of spacing " +

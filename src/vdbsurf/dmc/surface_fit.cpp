@@ -102,8 +102,9 @@ public:
         return true;
     }
 
-    // Does the fan of triangles (ring[j], ring[j + 1], c) face the way the surface does at its
-    // corners, with the ring's own orientation against the gradients deciding which way is out?
+    // Does the fan of triangles (ring[j], ring[j + 1], c) fit the surface: c not on one face of a
+    // crease the ring spans, and each triangle facing the way the surface does at its corners
+    // (the ring's own orientation against the gradients deciding which way is out)?
     bool fanFits(const std::vector<Vec3d>& ring, const Vec3d& c) const {
         const std::size_t n = ring.size();
         std::vector<Vec3d> normals(n);
@@ -114,6 +115,14 @@ public:
             sum += normals[j];
         }
         const Vec3d nc = normal(c);
+        // As for a split point: on a smooth surface the centre's normal lies among the corners'
+        // (within kBetweenShare of their widest angle of each); at a crease it is one face's.
+        double widest = 1;
+        for (std::size_t i = 0; i < n; ++i)
+            for (std::size_t j = i + 1; j < n; ++j) widest = std::min(widest, dot(normals[i], normals[j]));
+        const double need = std::cos(kBetweenShare * std::acos(std::clamp(widest, -1.0, 1.0)));
+        for (std::size_t j = 0; j < n; ++j)
+            if (!(dot(nc, normals[j]) >= need)) return false;
         const double agree = dot(newell, sum);
         if (!(std::fabs(agree) > 0)) return false;
         const double out = agree > 0 ? 1.0 : -1.0;
@@ -130,9 +139,9 @@ private:
     double mIso, mH, mTolerance;
 };
 
-// What becomes of a polygon: kept, a triangle split in two at its one split edge, or a fan
-// round a centre vertex.
-enum class Kind : std::uint8_t { Kept, TwoTriangles, Fan };
+// What becomes of a polygon: kept, fanned from a vertex of its ring, or fanned round a new
+// centre vertex.
+enum class Kind : std::uint8_t { Kept, Fan, Centre };
 
 } // namespace
 
@@ -144,6 +153,24 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
     auto checkCancel = [&] {
         if (options.cancel) options.cancel->check();
     };
+
+    // Crossings at a node (one point, several vertices until the weld) are left to the weld as
+    // marching cubes made them: any triangle of a fan that holds two of them is one the weld must
+    // collapse, or keep as a sliver where it keeps them apart. So polygons with two vertices at
+    // one point gain no vertex, and edges touching their vertices are not split.
+    std::vector<std::uint8_t> pinched(polygons, 0);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t p = r.begin(); p < r.end(); ++p) {
+            const std::uint32_t* q = mesh.polygon(p);
+            const std::uint32_t k = mesh.polygonSize(p);
+            for (std::uint32_t i = 0; i < k && !pinched[p]; ++i)
+                for (std::uint32_t j = i + 1; j < k && !pinched[p]; ++j) pinched[p] = mesh.points[q[i]] == mesh.points[q[j]];
+        }
+    });
+    std::vector<std::uint8_t> nearNode(mesh.points.size(), 0);
+    for (std::size_t p = 0; p < polygons; ++p)
+        if (pinched[p])
+            for (std::uint32_t j = 0; j < mesh.polygonSize(p); ++j) nearNode[mesh.polygon(p)[j]] = 1;
 
     // Edges: each decided once, by a polygon that runs it from its lower to its higher vertex
     // (in a closed oriented mesh exactly one of its two polygons; an edge no polygon runs so is
@@ -157,7 +184,7 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
             const std::uint32_t k = mesh.polygonSize(p);
             for (std::uint32_t j = 0; j < k; ++j) {
                 const std::uint32_t a = q[j], b = q[(j + 1) % k];
-                if (!(a < b)) continue;
+                if (!(a < b) || nearNode[a] || nearNode[b]) continue;
                 Vec3d s;
                 if (fitter.splitPoint(point(a), point(b), s)) local.push_back({edgeKey(a, b), Vec3f(s)});
             }
@@ -190,10 +217,13 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
     };
     auto ringPoint = [&](std::uint32_t v) { return v < firstSplit ? point(v) : Vec3d(splits[v - firstSplit].point); };
 
-    // Polygons: a centre on the surface where the middle strays and the fan round it fits the
-    // surface; where edges were split and that fails, the centre of the ring (fanned from a
-    // corner, the split vertex would make a sliver standing across the polygon).
+    // Polygons: a centre on the surface where the middle strays (or edges were split) and the
+    // fan round it fits the surface. Else a polygon with split edges is fanned from its first
+    // split vertex (from a corner, a triangle of the split vertex and the edge's two ends would
+    // stand across the polygon), and a loop of five or more corners from its first corner, as
+    // marching cubes fans it.
     std::vector<Kind> kind(polygons, Kind::Kept);
+    std::vector<std::uint32_t> apex(polygons, 0), ringSize(polygons, 0);
     std::vector<Vec3f> centre(polygons);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 256), [&](const tbb::blocked_range<std::size_t>& r) {
         checkCancel();
@@ -203,41 +233,42 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
             ringOf(p, ring);
             const std::size_t k = mesh.polygonSize(p);
             const bool split = ring.size() > k;
-            if (k == 3 && ring.size() == 4) {
-                kind[p] = Kind::TwoTriangles;
+            ringSize[p] = std::uint32_t(ring.size());
+            std::uint32_t splitAt = 0;
+            while (splitAt < ring.size() && ring[splitAt] < firstSplit) ++splitAt;
+            if (k == 3 && ring.size() == 4) { // one split edge: two triangles
+                kind[p] = Kind::Fan;
+                apex[p] = splitAt;
                 continue;
             }
             if (ring.size() <= 3) continue;
             at.resize(ring.size());
-            Vec3d mean;
-            for (std::size_t j = 0; j < ring.size(); ++j) mean += (at[j] = ringPoint(ring[j]));
-            mean = mean / double(ring.size());
-            Vec3d c = mean;
-            const bool fitted = fitter.strays(c) && fitter.project(c) && fitter.fanFits(at, c);
-            if (fitted || split) {
+            Vec3d c;
+            for (std::size_t j = 0; j < ring.size(); ++j) c += (at[j] = ringPoint(ring[j]));
+            c = c / double(ring.size());
+            if (!pinched[p] && (split || fitter.strays(c)) && fitter.project(c) && fitter.fanFits(at, c)) {
+                kind[p] = Kind::Centre;
+                centre[p] = Vec3f(c);
+            } else if (split || k > 4) {
                 kind[p] = Kind::Fan;
-                centre[p] = Vec3f(fitted ? c : mean);
+                apex[p] = split ? splitAt : 0;
             }
         }
     });
     checkCancel();
 
     std::uint64_t centres = 0;
+    bool changed = !splits.empty();
     std::vector<std::uint32_t> firstPolygon(polygons + 1), firstIndex(polygons + 1), centreVertex(polygons, noSplit);
     for (std::size_t p = 0; p < polygons; ++p) {
-        const std::uint32_t k = mesh.polygonSize(p);
+        const std::uint32_t k = mesh.polygonSize(p), n = ringSize[p];
         std::uint32_t outPolygons = 1, outIndices = k;
-        if (kind[p] == Kind::TwoTriangles) {
-            outPolygons = 2, outIndices = 6;
-        } else if (kind[p] == Kind::Fan) {
-            // The ring's size: the corners and the split vertices between them.
-            std::uint32_t n = k;
-            const std::uint32_t* q = mesh.polygon(p);
-            for (std::uint32_t j = 0; j < k; ++j) n += splitVertex(q[j], q[(j + 1) % k]) != noSplit;
+        if (kind[p] == Kind::Fan) {
+            outPolygons = n - 2, outIndices = 3 * (n - 2);
+            changed = true;
+        } else if (kind[p] == Kind::Centre) {
             outPolygons = n, outIndices = 3 * n;
             centreVertex[p] = firstSplit + std::uint32_t(splits.size() + centres++);
-        } else if (k > 4 || (k == 4 && options.triangulate)) {
-            outPolygons = k - 2, outIndices = 3 * (k - 2);
         }
         firstPolygon[p + 1] = firstPolygon[p] + outPolygons;
         firstIndex[p + 1] = firstIndex[p] + outIndices;
@@ -245,6 +276,10 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
     if (stats) {
         stats->edgesSplit = splits.size();
         stats->centresAdded = centres;
+    }
+    if (!changed && centres == 0) {
+        if (stats) stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        return mesh;
     }
 
     Mesh out;
@@ -265,29 +300,18 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
             };
             if (kind[p] == Kind::Kept) {
                 const std::uint32_t* q = mesh.polygon(p);
-                const std::uint32_t k = mesh.polygonSize(p);
-                if (k == 4 && options.triangulate) {
-                    const Vec3d d02 = point(q[0]) - point(q[2]), d13 = point(q[1]) - point(q[3]);
-                    if (dot(d02, d02) <= dot(d13, d13)) emit({q[0], q[1], q[2]}), emit({q[0], q[2], q[3]});
-                    else emit({q[0], q[1], q[3]}), emit({q[1], q[2], q[3]});
-                } else if (k > 4) {
-                    for (std::uint32_t j = 1; j + 1 < k; ++j) emit({q[0], q[j], q[j + 1]});
-                } else {
-                    for (std::uint32_t j = 0; j < k; ++j) out.indices[index++] = q[j];
-                    out.offsets[++poly] = index;
-                }
+                for (std::uint32_t j = 0; j < mesh.polygonSize(p); ++j) out.indices[index++] = q[j];
+                out.offsets[++poly] = index;
                 continue;
             }
             ringOf(p, ring);
-            if (kind[p] == Kind::TwoTriangles) {
-                std::size_t m = 0;
-                while (ring[m] < firstSplit) ++m;
-                const std::uint32_t split = ring[m], b = ring[(m + 1) % 4], c = ring[(m + 2) % 4], a = ring[(m + 3) % 4];
-                emit({a, split, c});
-                emit({split, b, c});
-                continue;
+            const std::size_t n = ring.size();
+            if (kind[p] == Kind::Fan) {
+                const std::size_t a = apex[p];
+                for (std::size_t j = 1; j + 1 < n; ++j) emit({ring[a], ring[(a + j) % n], ring[(a + j + 1) % n]});
+            } else {
+                for (std::size_t j = 0; j < n; ++j) emit({ring[j], ring[(j + 1) % n], centreVertex[p]});
             }
-            for (std::size_t j = 0; j < ring.size(); ++j) emit({ring[j], ring[(j + 1) % ring.size()], centreVertex[p]});
         }
     });
     if (stats) stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

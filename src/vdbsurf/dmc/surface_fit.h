@@ -20,9 +20,6 @@ struct SurfaceFitOptions {
     double iso = 0;
     double h = 0;           // lattice spacing, world units
     double tolerance = 0.2; // in cells: how far an edge's or a polygon's middle may stray
-    // Polygons left whole are finished as marching cubes finishes its loops: those of five or
-    // more corners fanned from the first, quads split along the shorter diagonal if this is set.
-    bool triangulate = false;
     const CancelToken* cancel = nullptr;
 };
 
@@ -31,8 +28,9 @@ struct SurfaceFitStats {
     double seconds = 0;
 };
 
-// The mesh (marching cubes' loops, whole) with vertices added where it strays from the surface,
-// and its polygons finished. Orientation, watertightness and manifoldness are kept: a split edge
+// The mesh with vertices added where it strays from the surface. Polygons of five or more
+// corners (marching cubes' loops left whole: SurfaceOptions::keepLoops) are always fanned round
+// a centre, on the surface where the fan fits it, else at their mean. Orientation, watertightness and manifoldness are kept: a split edge
 // is split in every polygon that uses it, and a centre vertex fans only its own polygon.
 Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& options, SurfaceFitStats* stats = nullptr);
 
