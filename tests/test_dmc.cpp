@@ -312,6 +312,34 @@ TEST_CASE("rods one to two cells across, at random orientations, come out in one
     CHECK(randomRodsInOnePiece(424245, 2.0 * kH, 8) == 8);
 }
 
+namespace {
+
+// Of a wire (rodFormula(n, c, width)) and its mesh: precision, the share of points of the mesh's
+// polygons within H/4 of the surface (|f| is the distance to the cylinder, and no more than the
+// distance near the caps); recall, the share of points of the wire's side within H/4 of the mesh.
+std::pair<double, double> wirePrecisionRecall(const Field& field, const Mesh& m, const Vec3d& n, const Vec3d& c, double width) {
+    std::size_t near = 0, samples = 0;
+    for (std::size_t p = 0; p < m.polygonCount(); ++p) {
+        const std::uint32_t* v = m.polygon(p);
+        for (std::uint32_t j = 1; j + 1 < m.polygonSize(p); ++j) {
+            const Vec3d a(m.points[v[0]]), b(m.points[v[j]]), d(m.points[v[j + 1]]);
+            for (int u = 0; u <= 6; ++u)
+                for (int w = 0; u + w <= 6; ++w, ++samples)
+                    near += std::fabs(field.value(a + (b - a) * (u / 6.0) + (d - a) * (w / 6.0))) <= kH / 4;
+        }
+    }
+    Vec3d a, b;
+    frameOf(n, a, b);
+    std::vector<Vec3d> truth;
+    for (int i = 0; i < 600; ++i) {
+        const double t = -0.6 + 1.2 * i / 599.0, phi = i * 2.39996;
+        truth.push_back(c + n * t + (a * std::cos(phi) + b * std::sin(phi)) * (width / 2));
+    }
+    return {double(near) / double(samples), coverage(m, truth, kH / 4)};
+}
+
+} // namespace
+
 TEST_CASE("wires 0.8 to 1 cell thick at random orientations: their nodes are centred, and the mesh hugs the wire") {
     // Such a wire holds about one node per cross-section, and the crossings on its four edges
     // across the wire fall where the lattice lines through it meet the surface: from a node near
@@ -331,27 +359,7 @@ TEST_CASE("wires 0.8 to 1 cell thick at random orientations: their nodes are cen
         MeshReport report;
         const Mesh m = dmcAtH(field, report);
         centred += report.thinNodesCentred;
-        // Precision: points of the polygons within H/4 of the surface (|f| is the distance to the
-        // cylinder, and no more than the distance near the caps).
-        std::size_t near = 0, samples = 0;
-        for (std::size_t p = 0; p < m.polygonCount(); ++p) {
-            const std::uint32_t* v = m.polygon(p);
-            for (std::uint32_t j = 1; j + 1 < m.polygonSize(p); ++j) {
-                const Vec3d a(m.points[v[0]]), b(m.points[v[j]]), d(m.points[v[j + 1]]);
-                for (int u = 0; u <= 6; ++u)
-                    for (int w = 0; u + w <= 6; ++w, ++samples)
-                        near += std::fabs(field.value(a + (b - a) * (u / 6.0) + (d - a) * (w / 6.0))) <= kH / 4;
-            }
-        }
-        // Recall: points of the wire's side within H/4 of the mesh.
-        Vec3d a, b;
-        frameOf(n, a, b);
-        std::vector<Vec3d> truth;
-        for (int i = 0; i < 600; ++i) {
-            const double t = -0.6 + 1.2 * i / 599.0, phi = i * 2.39996;
-            truth.push_back(c + n * t + (a * std::cos(phi) + b * std::sin(phi)) * (width / 2));
-        }
-        const double precision = double(near) / double(samples), recall = coverage(m, truth, kH / 4);
+        const auto [precision, recall] = wirePrecisionRecall(field, m, n, c, width);
         const double F = 2 * precision * recall / (precision + recall);
         INFO("wire " << width / kH << " H wide: " << f << ": precision " << precision << ", recall " << recall);
         CHECK(countComponents(m) == 1);
@@ -363,6 +371,50 @@ TEST_CASE("wires 0.8 to 1 cell thick at random orientations: their nodes are cen
     // All 16 and a mean F of 0.983 (14 of 16 and 0.970 without centring; the worst 0.928).
     CHECK(good >= 15);
     CHECK(sumF / count >= 0.978);
+}
+
+TEST_CASE("wires 1 to 1.6 cells thick at random orientations: the surface fit puts vertices where polygons cut across them") {
+    // Four to six crossings round such a wire, and one marching-cubes polygon may span more than
+    // half of its round: its chords pass through the wire up to half a cell from the surface. The
+    // fit splits edges and fans polygons round points projected onto the surface there.
+    std::mt19937 rng(9091);
+    std::uniform_real_distribution<double> widths(1.0 * kH, 1.6 * kH);
+    const int count = 12;
+    int good[2] = {0, 0};
+    double sumF[2] = {0, 0};
+    std::size_t triangles[2] = {0, 0};
+    std::uint64_t added = 0;
+    for (int trial = 0; trial < count; ++trial) {
+        const Vec3d n = randomUnit(rng), c = randomCentre(rng);
+        const double width = widths(rng);
+        const std::string f = rodFormula(n, c, width);
+        ExpressionField field(f, kBox);
+        for (int fit = 0; fit < 2; ++fit) {
+            MeshRequest req;
+            req.voxelSize = kH;
+            req.fit = fit == 1;
+            MeshReport report;
+            const Mesh m = meshField(field, req, report);
+            requireClosed(m);
+            CHECK(countComponents(m) == 1);
+            const auto [precision, recall] = wirePrecisionRecall(field, m, n, c, width);
+            const double F = 2 * precision * recall / (precision + recall);
+            INFO("wire " << width / kH << " H wide, fit " << fit << ": " << f << ": precision " << precision << ", recall " << recall);
+            if (fit) CHECK(F >= 0.95);
+            good[fit] += F >= 0.95;
+            sumF[fit] += F;
+            triangles[fit] += m.fannedTriangleCount();
+            if (fit) added += report.fitEdgesSplit + report.fitCentres;
+        }
+    }
+    INFO("F >= 0.95 on " << good[1] << " with the fit (mean " << sumF[1] / count << ", " << triangles[1] << " triangles), " << good[0]
+                         << " without (mean " << sumF[0] / count << ", " << triangles[0] << " triangles)");
+    CHECK(added > 0);
+    CHECK(good[1] == count);
+    CHECK(sumF[1] / count >= 0.975);
+    CHECK(good[0] < count);
+    // The fit adds vertices where they are needed, not everywhere: well under twice the triangles.
+    CHECK(triangles[1] < 1.5 * triangles[0]);
 }
 
 TEST_CASE("a crack thinner than a cell inside a solid comes out (concave thin part)") {

@@ -36,7 +36,8 @@ struct MeshOptions {
     std::optional<double> iso, voxelSize;
     int threads = 0, searchSteps = 5;
     double sharpEdge = 0.9, sharpCorner = 0.7;
-    bool triangles = false, noThin = false, noSharp = false;
+    std::optional<double> fitTolerance;
+    bool triangles = false, noThin = false, noSharp = false, noFit = false;
 };
 
 void runMesh(const MeshOptions& o) {
@@ -53,8 +54,14 @@ void runMesh(const MeshOptions& o) {
     checkWritableTarget(o.output);
     if (!o.stats.empty()) checkWritableTarget(o.stats);
     const bool dmc = o.method == "dmc";
-    if (!dmc && (o.noThin || o.noSharp || !o.latticeOut.empty()))
-        throw Error(o.noThin ? "--no-thin" : o.noSharp ? "--no-sharp" : "--lattice-out", "applies only to --method dmc");
+    if (!dmc && (o.noThin || o.noSharp || o.noFit || o.fitTolerance || !o.latticeOut.empty()))
+        throw Error(o.noThin         ? "--no-thin"
+                    : o.noSharp      ? "--no-sharp"
+                    : o.noFit        ? "--no-fit"
+                    : o.fitTolerance ? "--fit-tolerance"
+                                     : "--lattice-out",
+                    "applies only to --method dmc");
+    if (o.noFit && o.fitTolerance) throw Error("--fit-tolerance", "has no effect with --no-fit; give one or the other");
     if (!o.latticeOut.empty()) {
         if (meshFormatOf(o.latticeOut) != MeshFormat::Vdb) throw Error(o.latticeOut, "--lattice-out must name a .vdb file");
         checkWritableTarget(o.latticeOut);
@@ -97,6 +104,8 @@ void runMesh(const MeshOptions& o) {
     req.method = dmc ? MeshMethod::Dmc : MeshMethod::MarchingCubes;
     req.thin = !o.noThin;
     req.sharp = !o.noSharp;
+    req.fit = !o.noFit;
+    if (o.fitTolerance) req.fitTolerance = *o.fitTolerance;
     req.searchSteps = o.searchSteps;
     req.sharpEdge = o.sharpEdge;
     req.sharpCorner = o.sharpCorner;
@@ -114,7 +123,10 @@ void runMesh(const MeshOptions& o) {
     if (dmc)
         note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts, " + std::to_string(rep.thinNodesCentred) +
              " centred in them, " + std::to_string(rep.nodesOnCorners) + " onto corners, " + std::to_string(rep.nodesOnEdges) +
-             " onto edges");
+             " onto edges" +
+             (rep.fitEdgesSplit + rep.fitCentres > 0 ? "; fit: " + std::to_string(rep.fitEdgesSplit) + " edges split and " +
+                                                           std::to_string(rep.fitCentres) + " centres added on the surface"
+                                                     : std::string()));
 
     const auto tWrite = Clock::now();
     const std::vector<std::string> provenance = {
@@ -176,13 +188,16 @@ void runMesh(const MeshOptions& o) {
                            {"nodes_flipped", rep.nodesFlipped},
                            {"welded_vertices", rep.weldedVertices},
                            {"collapsed_polygons", rep.collapsedPolygons},
-                           {"split_vertices", rep.splitVertices}}},
+                           {"split_vertices", rep.splitVertices},
+                           {"fit_edges_split", rep.fitEdgesSplit},
+                           {"fit_centres", rep.fitCentres}}},
                          {"seconds",
                           {{"read", secondsRead},
                            {"lattice", rep.secondsLattice},
                            {"thin_search", rep.secondsThin},
                            {"sharp_features", rep.secondsSharp},
                            {"mesh", rep.secondsMesh},
+                           {"fit", rep.secondsFit},
                            {"write", secondsWrite},
                            {"total", since(t0)}}}};
         writeJsonFile(o.stats, j);
@@ -211,6 +226,10 @@ Action addMeshCommand(CLI::App& app) {
         ->check(CLI::Range(0.0, 1.0));
     sub->add_flag("--no-thin", o->noThin, "DMC: skip the thin-part search");
     sub->add_flag("--no-sharp", o->noSharp, "DMC: skip sharp edges and corners");
+    sub->add_flag("--no-fit", o->noFit, "DMC: add no vertices where the mesh strays from the surface");
+    sub->add_option("--fit-tolerance", o->fitTolerance,
+                    "DMC: cells an edge's or polygon's middle may stray from the surface before a vertex is added (default 0.2)")
+        ->check(CLI::Range(0.001, 1.0));
     sub->add_option("--lattice-out", o->latticeOut, "DMC: write the deformed lattice (Vec3f node offsets) to this .vdb");
     sub->add_option("--inside", o->inside, "Override which side is inside: below or above the iso value")
         ->check(CLI::IsMember({"below", "above"}));

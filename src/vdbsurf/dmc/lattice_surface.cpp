@@ -592,7 +592,7 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
     return total;
 }
 
-Mesh LatticeSurface::mesh(const std::function<void(Mesh&)>& beforeWeld) {
+Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std::uint32_t>&)>& beforeWeld) {
     Impl& im = *mImpl;
     if (im.meshTaken) throw std::logic_error("LatticeSurface::mesh called twice");
     im.meshTaken = true;
@@ -679,7 +679,6 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&)>& beforeWeld) {
         }
     });
     if (im.options.cancel) im.options.cancel->check();
-    if (beforeWeld) beforeWeld(mesh);
     std::vector<std::pair<std::uint32_t, Vec3i>> atNode; // (vertex, node), in leaf order
     std::vector<std::uint8_t> rounded;                    // per entry of atNode: put there by rounding
     for (const LeafWork& w : im.work) {
@@ -690,6 +689,11 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&)>& beforeWeld) {
             while (r != w.roundedVertices.end() && *r < local) ++r;
             rounded.push_back(r != w.roundedVertices.end() && *r == local);
         }
+    }
+    if (beforeWeld) {
+        std::vector<std::uint32_t> toWeld(atNode.size());
+        for (std::size_t i = 0; i < atNode.size(); ++i) toWeld[i] = atNode[i].first;
+        beforeWeld(mesh, toWeld);
     }
     const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded);
     im.stats.weldedVertices = welding.weldedVertices;

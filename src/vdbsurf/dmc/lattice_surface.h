@@ -83,9 +83,10 @@ public:
     std::uint64_t moveCrossingsToFeatureNodes(const LatticeDeformation& deformation);
 
     // The mesh: polygons oriented with normals from inside to outside. `beforeWeld`, if given,
-    // may refine the polygons before the crossings at nodes are welded (it keeps the vertices it
-    // is given, in place and numbered as they were, and only appends new ones).
-    Mesh mesh(const std::function<void(Mesh&)>& beforeWeld = {});
+    // may refine the polygons before the crossings at nodes are welded; it is told which vertices
+    // the weld will join (crossings at a node), and must keep every vertex in place and numbered
+    // as it was, only appending new ones.
+    Mesh mesh(const std::function<void(Mesh&, const std::vector<std::uint32_t>&)>& beforeWeld = {});
     const SurfaceStats& stats() const;
 
     struct Impl;

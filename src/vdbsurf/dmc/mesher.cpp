@@ -137,16 +137,16 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     if (request.deformedLattice) request.deformedLattice(lattice, deformation);
     // The fit refines marching cubes' polygons before the crossings at nodes are welded, so that
     // the weld sees every edge the mesh will have.
-    std::function<void(Mesh&)> fitBeforeWeld;
+    std::function<void(Mesh&, const std::vector<std::uint32_t>&)> fitBeforeWeld;
     if (fit)
-        fitBeforeWeld = [&](Mesh& m) {
+        fitBeforeWeld = [&](Mesh& m, const std::vector<std::uint32_t>& toWeld) {
             SurfaceFitOptions fo;
             fo.iso = report.iso;
             fo.h = report.frame.h;
             fo.tolerance = request.fitTolerance;
             fo.cancel = request.cancel;
             SurfaceFitStats fs;
-            m = fitToSurface(field, std::move(m), fo, &fs);
+            m = fitToSurface(field, std::move(m), toWeld, fo, &fs);
             report.fitEdgesSplit = fs.edgesSplit;
             report.fitCentres = fs.centresAdded;
             report.secondsFit = fs.seconds;

@@ -145,7 +145,8 @@ enum class Kind : std::uint8_t { Kept, Fan, Centre };
 
 } // namespace
 
-Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& options, SurfaceFitStats* stats) {
+Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t>& fixed, const SurfaceFitOptions& options,
+                  SurfaceFitStats* stats) {
     const auto start = std::chrono::steady_clock::now();
     const Fitter fitter(field, options);
     const std::size_t polygons = mesh.polygonCount();
@@ -154,23 +155,24 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
         if (options.cancel) options.cancel->check();
     };
 
-    // Crossings at a node (one point, several vertices until the weld) are left to the weld as
-    // marching cubes made them: any triangle of a fan that holds two of them is one the weld must
-    // collapse, or keep as a sliver where it keeps them apart. So polygons with two vertices at
-    // one point gain no vertex, and edges touching their vertices are not split.
+    // Crossings at a node (one point, several vertices until the weld joins them) are left to the
+    // weld as marching cubes made them: a fan's triangle holding two of them is one the weld must
+    // collapse or keep as a sliver, and new edges from one of them are edges the weld does not
+    // expect (joined, two polygons' fans could share one). So polygons with such a vertex gain no
+    // vertex, and their edges are not split.
+    std::vector<std::uint8_t> nearNode(mesh.points.size(), 0);
+    for (std::uint32_t v : fixed) nearNode[v] = 1;
     std::vector<std::uint8_t> pinched(polygons, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t p = r.begin(); p < r.end(); ++p) {
             const std::uint32_t* q = mesh.polygon(p);
-            const std::uint32_t k = mesh.polygonSize(p);
-            for (std::uint32_t i = 0; i < k && !pinched[p]; ++i)
-                for (std::uint32_t j = i + 1; j < k && !pinched[p]; ++j) pinched[p] = mesh.points[q[i]] == mesh.points[q[j]];
+            for (std::uint32_t j = 0; j < mesh.polygonSize(p) && !pinched[p]; ++j) pinched[p] = nearNode[q[j]];
         }
     });
-    std::vector<std::uint8_t> nearNode(mesh.points.size(), 0);
+    std::vector<std::uint8_t> nearPinched(mesh.points.size(), 0);
     for (std::size_t p = 0; p < polygons; ++p)
         if (pinched[p])
-            for (std::uint32_t j = 0; j < mesh.polygonSize(p); ++j) nearNode[mesh.polygon(p)[j]] = 1;
+            for (std::uint32_t j = 0; j < mesh.polygonSize(p); ++j) nearPinched[mesh.polygon(p)[j]] = 1;
 
     // Edges: each decided once, by a polygon that runs it from its lower to its higher vertex
     // (in a closed oriented mesh exactly one of its two polygons; an edge no polygon runs so is
@@ -184,7 +186,7 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
             const std::uint32_t k = mesh.polygonSize(p);
             for (std::uint32_t j = 0; j < k; ++j) {
                 const std::uint32_t a = q[j], b = q[(j + 1) % k];
-                if (!(a < b) || nearNode[a] || nearNode[b]) continue;
+                if (!(a < b) || nearPinched[a] || nearPinched[b]) continue;
                 Vec3d s;
                 if (fitter.splitPoint(point(a), point(b), s)) local.push_back({edgeKey(a, b), Vec3f(s)});
             }
@@ -218,44 +220,60 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& option
     auto ringPoint = [&](std::uint32_t v) { return v < firstSplit ? point(v) : Vec3d(splits[v - firstSplit].point); };
 
     // Polygons: a centre on the surface where the middle strays (or edges were split) and the
-    // fan round it fits the surface. Else a polygon with split edges is fanned from its first
-    // split vertex (from a corner, a triangle of the split vertex and the edge's two ends would
-    // stand across the polygon), and a loop of five or more corners from its first corner, as
-    // marching cubes fans it.
+    // fan round it fits the surface; a triangle with one split edge, two triangles from the split
+    // vertex; a loop of five or more corners otherwise fanned from its first corner, as marching
+    // cubes fans it. A polygon with split edges and no centre that fits refuses its splits (a fan
+    // from a split vertex may repeat the diagonals of the polygon across the edge, where two loops
+    // share two segments of an ambiguous face); those edges stay whole and the polygons around
+    // them are decided again, until every split edge is taken.
     std::vector<Kind> kind(polygons, Kind::Kept);
     std::vector<std::uint32_t> apex(polygons, 0), ringSize(polygons, 0);
     std::vector<Vec3f> centre(polygons);
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (;;) {
+        tbb::enumerable_thread_specific<std::vector<EdgeKey>> refusedLocal;
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+            checkCancel();
+            std::vector<std::uint32_t> ring;
+            std::vector<Vec3d> at;
+            for (std::size_t p = r.begin(); p < r.end(); ++p) {
+                ringOf(p, ring);
+                const std::uint32_t* q = mesh.polygon(p);
+                const std::size_t k = mesh.polygonSize(p);
+                const bool split = ring.size() > k;
+                ringSize[p] = std::uint32_t(ring.size());
+                kind[p] = Kind::Kept;
+                if (k == 3 && ring.size() == 4) {
+                    kind[p] = Kind::Fan;
+                    apex[p] = 0;
+                    while (ring[apex[p]] < firstSplit) ++apex[p];
+                    continue;
+                }
+                if (ring.size() <= 3) continue;
+                at.resize(ring.size());
+                Vec3d c;
+                for (std::size_t j = 0; j < ring.size(); ++j) c += (at[j] = ringPoint(ring[j]));
+                c = c / double(ring.size());
+                if (!pinched[p] && (split || fitter.strays(c)) && fitter.project(c) && fitter.fanFits(at, c)) {
+                    kind[p] = Kind::Centre;
+                    centre[p] = Vec3f(c);
+                } else if (split) {
+                    for (std::size_t j = 0; j < k; ++j)
+                        if (splitVertex(q[j], q[(j + 1) % k]) != noSplit) refusedLocal.local().push_back(edgeKey(q[j], q[(j + 1) % k]));
+                } else if (k > 4) {
+                    kind[p] = Kind::Fan;
+                    apex[p] = 0;
+                }
+            }
+        });
         checkCancel();
-        std::vector<std::uint32_t> ring;
-        std::vector<Vec3d> at;
-        for (std::size_t p = r.begin(); p < r.end(); ++p) {
-            ringOf(p, ring);
-            const std::size_t k = mesh.polygonSize(p);
-            const bool split = ring.size() > k;
-            ringSize[p] = std::uint32_t(ring.size());
-            std::uint32_t splitAt = 0;
-            while (splitAt < ring.size() && ring[splitAt] < firstSplit) ++splitAt;
-            if (k == 3 && ring.size() == 4) { // one split edge: two triangles
-                kind[p] = Kind::Fan;
-                apex[p] = splitAt;
-                continue;
-            }
-            if (ring.size() <= 3) continue;
-            at.resize(ring.size());
-            Vec3d c;
-            for (std::size_t j = 0; j < ring.size(); ++j) c += (at[j] = ringPoint(ring[j]));
-            c = c / double(ring.size());
-            if (!pinched[p] && (split || fitter.strays(c)) && fitter.project(c) && fitter.fanFits(at, c)) {
-                kind[p] = Kind::Centre;
-                centre[p] = Vec3f(c);
-            } else if (split || k > 4) {
-                kind[p] = Kind::Fan;
-                apex[p] = split ? splitAt : 0;
-            }
-        }
-    });
-    checkCancel();
+        std::vector<EdgeKey> refused;
+        for (const auto& l : refusedLocal) refused.insert(refused.end(), l.begin(), l.end());
+        if (refused.empty()) break;
+        std::sort(refused.begin(), refused.end());
+        splits.erase(std::remove_if(splits.begin(), splits.end(),
+                                    [&](const SplitEdge& e) { return std::binary_search(refused.begin(), refused.end(), e.key); }),
+                     splits.end());
+    }
 
     std::uint64_t centres = 0;
     bool changed = !splits.empty();

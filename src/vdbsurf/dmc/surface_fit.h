@@ -11,6 +11,7 @@
 #include "vdbsurf/mesh/mesh.h"
 
 #include <cstdint>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -32,6 +33,9 @@ struct SurfaceFitStats {
 // corners (marching cubes' loops left whole: SurfaceOptions::keepLoops) are always fanned round
 // a centre, on the surface where the fan fits it, else at their mean. Orientation, watertightness and manifoldness are kept: a split edge
 // is split in every polygon that uses it, and a centre vertex fans only its own polygon.
-Mesh fitToSurface(const Field& field, Mesh mesh, const SurfaceFitOptions& options, SurfaceFitStats* stats = nullptr);
+// `fixed`: vertices the fit must leave as marching cubes joined them (crossings at a node that a
+// weld will join after it): their edges are not split and their polygons get no new vertex.
+Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t>& fixed, const SurfaceFitOptions& options,
+                  SurfaceFitStats* stats = nullptr);
 
 } // namespace vdbsurf
