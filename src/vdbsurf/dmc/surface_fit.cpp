@@ -34,9 +34,9 @@ constexpr double kBetweenShare = 0.75;
 
 using EdgeKey = std::uint64_t;
 
-EdgeKey edgeKey(std::uint32_t a, std::uint32_t b) {
-    return (EdgeKey(std::min(a, b)) << 32) | EdgeKey(std::max(a, b));
-}
+// The least cosine a point's normal may make with the normals of the ends (or corners) whose
+// widest angle has cosine `widest` (see kBetweenShare).
+double betweenCosine(double widest) { return std::cos(kBetweenShare * std::acos(std::clamp(widest, -1.0, 1.0))); }
 
 struct SplitEdge {
     EdgeKey key;
@@ -96,8 +96,7 @@ public:
         if (!strays(p) || !project(p)) return false;
         const Vec3d na = normal(a), nb = normal(b), np = normal(p);
         if (dot(na, na) == 0 || dot(nb, nb) == 0 || dot(np, np) == 0) return false;
-        const double need = std::cos(kBetweenShare * std::acos(std::clamp(dot(na, nb), -1.0, 1.0)));
-        if (std::min(dot(np, na), dot(np, nb)) < need) return false;
+        if (std::min(dot(np, na), dot(np, nb)) < betweenCosine(dot(na, nb))) return false;
         out = p;
         return true;
     }
@@ -120,7 +119,7 @@ public:
         double widest = 1;
         for (std::size_t i = 0; i < n; ++i)
             for (std::size_t j = i + 1; j < n; ++j) widest = std::min(widest, dot(normals[i], normals[j]));
-        const double need = std::cos(kBetweenShare * std::acos(std::clamp(widest, -1.0, 1.0)));
+        const double need = betweenCosine(widest);
         for (std::size_t j = 0; j < n; ++j)
             if (!(dot(nc, normals[j]) >= need)) return false;
         const double agree = dot(newell, sum);
@@ -160,19 +159,19 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
     // collapse or keep as a sliver, and new edges from one of them are edges the weld does not
     // expect (joined, two polygons' fans could share one). So polygons with such a vertex gain no
     // vertex, and their edges are not split.
-    std::vector<std::uint8_t> nearNode(mesh.points.size(), 0);
-    for (std::uint32_t v : fixed) nearNode[v] = 1;
-    std::vector<std::uint8_t> pinched(polygons, 0);
+    std::vector<std::uint8_t> welded(mesh.points.size(), 0);
+    for (std::uint32_t v : fixed) welded[v] = 1;
+    std::vector<std::uint8_t> holdsWeld(polygons, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t p = r.begin(); p < r.end(); ++p) {
             const std::uint32_t* q = mesh.polygon(p);
-            for (std::uint32_t j = 0; j < mesh.polygonSize(p) && !pinched[p]; ++j) pinched[p] = nearNode[q[j]];
+            for (std::uint32_t j = 0; j < mesh.polygonSize(p) && !holdsWeld[p]; ++j) holdsWeld[p] = welded[q[j]];
         }
     });
-    std::vector<std::uint8_t> nearPinched(mesh.points.size(), 0);
+    std::vector<std::uint8_t> besideWeld(mesh.points.size(), 0);
     for (std::size_t p = 0; p < polygons; ++p)
-        if (pinched[p])
-            for (std::uint32_t j = 0; j < mesh.polygonSize(p); ++j) nearPinched[mesh.polygon(p)[j]] = 1;
+        if (holdsWeld[p])
+            for (std::uint32_t j = 0; j < mesh.polygonSize(p); ++j) besideWeld[mesh.polygon(p)[j]] = 1;
 
     // Edges: each decided once, by a polygon that runs it from its lower to its higher vertex
     // (in a closed oriented mesh exactly one of its two polygons; an edge no polygon runs so is
@@ -186,9 +185,9 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
             const std::uint32_t k = mesh.polygonSize(p);
             for (std::uint32_t j = 0; j < k; ++j) {
                 const std::uint32_t a = q[j], b = q[(j + 1) % k];
-                if (!(a < b) || nearPinched[a] || nearPinched[b]) continue;
+                if (!(a < b) || besideWeld[a] || besideWeld[b]) continue;
                 Vec3d s;
-                if (fitter.splitPoint(point(a), point(b), s)) local.push_back({edgeKey(a, b), Vec3f(s)});
+                if (fitter.splitPoint(point(a), point(b), s)) local.push_back({undirectedEdgeKey(a, b), Vec3f(s)});
             }
         }
     });
@@ -202,7 +201,7 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
     const std::uint32_t noSplit = ~std::uint32_t(0);
     auto splitVertex = [&](std::uint32_t a, std::uint32_t b) {
         if (splits.empty()) return noSplit;
-        const EdgeKey key = edgeKey(a, b);
+        const EdgeKey key = undirectedEdgeKey(a, b);
         const auto it = std::lower_bound(splits.begin(), splits.end(), key, [](const SplitEdge& s, EdgeKey k) { return s.key < k; });
         return it != splits.end() && it->key == key ? firstSplit + std::uint32_t(it - splits.begin()) : noSplit;
     };
@@ -253,12 +252,12 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
                 Vec3d c;
                 for (std::size_t j = 0; j < ring.size(); ++j) c += (at[j] = ringPoint(ring[j]));
                 c = c / double(ring.size());
-                if (!pinched[p] && (split || fitter.strays(c)) && fitter.project(c) && fitter.fanFits(at, c)) {
+                if (!holdsWeld[p] && (split || fitter.strays(c)) && fitter.project(c) && fitter.fanFits(at, c)) {
                     kind[p] = Kind::Centre;
                     centre[p] = Vec3f(c);
                 } else if (split) {
                     for (std::size_t j = 0; j < k; ++j)
-                        if (splitVertex(q[j], q[(j + 1) % k]) != noSplit) refusedLocal.local().push_back(edgeKey(q[j], q[(j + 1) % k]));
+                        if (splitVertex(q[j], q[(j + 1) % k]) != noSplit) refusedLocal.local().push_back(undirectedEdgeKey(q[j], q[(j + 1) % k]));
                 } else if (k > 4) {
                     kind[p] = Kind::Fan;
                     apex[p] = 0;

@@ -27,6 +27,12 @@ struct Mesh {
     Box3 bounds() const;
 };
 
+// One 64-bit key per undirected edge a-b (the lower index in the high half): edges sorted by it
+// group the polygons that share them.
+inline std::uint64_t undirectedEdgeKey(std::uint32_t a, std::uint32_t b) {
+    return a < b ? (std::uint64_t(a) << 32) | b : (std::uint64_t(b) << 32) | a;
+}
+
 // Surface area and enclosed volume (divergence theorem; positive when oriented outwards).
 // Polygons are fanned from their first vertex.
 double surfaceArea(const Mesh& mesh);

@@ -1,4 +1,5 @@
 #include "vdbsurf/reeb/reeb_graph.h"
+#include "vdbsurf/mesh/mesh.h"
 
 #include "vdbsurf/core/union_find.h"
 
@@ -212,7 +213,7 @@ ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
         for (std::uint32_t k = pieces.offsets[p]; k < pieces.offsets[p + 1]; ++k) {
             const std::uint32_t a = pieces.indices[k], b = pieces.indices[k + 1 == pieces.offsets[p + 1] ? pieces.offsets[p] : k + 1];
             if (key[a] == key[b]) continue;
-            sides.push_back({(std::uint64_t(std::min(a, b)) << 32) | std::max(a, b), p});
+            sides.push_back({undirectedEdgeKey(a, b), p});
         }
     tbb::parallel_sort(sides.begin(), sides.end());
     UnionFind uf(pieces.count());

@@ -1,4 +1,5 @@
 #include "vdbsurf/reeb/ring_grid.h"
+#include "vdbsurf/mesh/mesh.h"
 
 #include <algorithm>
 #include <cmath>
@@ -95,7 +96,7 @@ public:
                 const std::uint32_t u = mUnit.indices[b + k], w = mUnit.indices[b + (k + 1) % n];
                 const bool uAbove = mHeight[u] >= t, wAbove = mHeight[w] >= t;
                 if (uAbove == wAbove) continue;
-                const std::uint64_t key = (std::uint64_t(std::min(u, w)) << 32) | std::max(u, w);
+                const std::uint64_t key = undirectedEdgeKey(u, w);
                 if (!uAbove) { // climbing: the contour enters here
                     in = key;
                     const double s = (t - mHeight[u]) / (mHeight[w] - mHeight[u]);
@@ -108,7 +109,7 @@ public:
                         const std::uint32_t u2 = mUnit.indices[b + j % n], w2 = mUnit.indices[b + (j + 1) % n];
                         if (mHeight[u2] < t && mHeight[w2] >= t) {
                             const double s = (t - mHeight[u2]) / (mHeight[w2] - mHeight[u2]);
-                            segs.push_back({(std::uint64_t(std::min(u2, w2)) << 32) | std::max(u2, w2), key,
+                            segs.push_back({undirectedEdgeKey(u2, w2), key,
                                             mUnit.points[u2] + (mUnit.points[w2] - mUnit.points[u2]) * s});
                             break;
                         }
