@@ -84,3 +84,19 @@ TEST_CASE("loops face from inside to outside") {
         }
     }
 }
+
+TEST_CASE("a fan from each loop's first vertex draws no diagonal along a cube face") {
+    // The neighbour across that face could draw the same diagonal: two polygons on one edge
+    // twice over, a non-manifold mesh.
+    int fans = 0;
+    for (unsigned config = 0; config < 256; ++config) {
+        const CubeCase& cc = cubeCase(config);
+        INFO("config " << config);
+        for (int l = 0, k0 = 0; l < cc.loopCount; k0 += cc.loopSize[l], ++l) {
+            const int k = cc.loopSize[l];
+            for (int j = 2; j <= k - 2; ++j) CHECK(!cubeEdgesShareFace(cc.edges[k0], cc.edges[k0 + j]));
+            fans += k >= 4;
+        }
+    }
+    CHECK(fans == 66 + 72 + 52 + 24); // the loops of 4 to 7 crossings
+}

@@ -88,7 +88,7 @@ CubeCase makeCase(unsigned config) {
             ++size;
             if (next[std::size_t(cur)] < 0) throw std::logic_error("cube table: open loop");
         }
-        if (size >= 4 && !rotateToSafeApex(cc.edges + count - size, size)) cc.needsCentre |= std::uint8_t(1u << cc.loopCount);
+        if (size >= 4 && !rotateToSafeApex(cc.edges + count - size, size)) throw std::logic_error("cube table: a loop with no safe fan apex");
         cc.loopSize[cc.loopCount++] = std::uint8_t(size);
     }
     return cc;

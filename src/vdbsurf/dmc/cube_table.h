@@ -21,10 +21,8 @@ struct CubeCase {
     // Loops one after another, each in outward (counter-clockwise) order, rotated so that a fan
     // from its first vertex never draws a diagonal between two edges of one cube face: such a
     // diagonal could be drawn again by the neighbour across that face, making a non-manifold edge.
+    // Every loop of this table has such a vertex (the table refuses to build otherwise).
     std::uint8_t edges[12] = {};
-    // Loops with no such fan (they pass an ambiguous face twice): triangulate around a vertex
-    // added at the loop's centre instead.
-    std::uint8_t needsCentre = 0; // bit l for loop l
     std::uint16_t edgeMask = 0;   // edges with a crossing
 };
 

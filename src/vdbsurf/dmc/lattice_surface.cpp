@@ -49,7 +49,6 @@ struct LeafWork {
     std::vector<std::pair<std::uint32_t, Coord>> nodeVertices;
     // Of those, the ones put there because they rounded to the node (ascending).
     std::vector<std::uint32_t> roundedVertices;
-    std::uint32_t centreCount = 0; // vertices added at loop centres, numbered after the edge vertices
     std::uint32_t faceCount = 0, indexCount = 0;
     std::uint32_t vertexBase = 0, faceBase = 0, indexBase = 0;
     std::uint64_t cellsWithSurface = 0;
@@ -380,12 +379,6 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     if (!anyMoved) w.sharpCandidate[rank] = gradients.mayHoldSharpEdge(x, y, z, edgeLimit);
                 }
                 for (int l = 0; l < cc.loopCount; ++l) {
-                    if (cc.needsCentre & (1u << l)) {
-                        ++w.centreCount;
-                        w.faceCount += cc.loopSize[l];
-                        w.indexCount += 3u * cc.loopSize[l];
-                        continue;
-                    }
                     w.faceCount += loopFaces(cc.loopSize[l], tri, options.keepLoops);
                     w.indexCount += loopIndices(cc.loopSize[l], tri, options.keepLoops);
                 }
@@ -606,7 +599,7 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
         w.vertexBase = vtotal;
         w.faceBase = ftotal;
         w.indexBase = itotal;
-        const std::uint64_t nv = std::uint64_t(vtotal) + w.vertices.size() + w.centreCount;
+        const std::uint64_t nv = std::uint64_t(vtotal) + w.vertices.size();
         const std::uint64_t ni = std::uint64_t(itotal) + w.indexCount;
         if (nv > 0xffffffffull || ni > 0xffffffffull) throw std::runtime_error("mesh too large for 32-bit indices");
         vtotal = std::uint32_t(nv);
@@ -632,7 +625,6 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
             const MaskLeaf& leaf = im.leafManager.leaf(li);
             const LeafWork& w = im.work[li];
             std::uint32_t f = w.faceBase, idx = w.indexBase;
-            std::uint32_t nextCentre = w.vertexBase + std::uint32_t(w.vertices.size());
             std::size_t rank = 0;
             for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
                 const unsigned config = w.config[rank];
@@ -652,14 +644,7 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
                         for (std::uint32_t v : vs) mesh.indices[idx++] = v;
                         mesh.offsets[++f] = idx;
                     };
-                    if (cc.needsCentre & (1u << l)) {
-                        // Only this leaf writes its centre vertices; the loop's edge vertices are all in place.
-                        Vec3d c;
-                        for (std::uint32_t i = 0; i < k; ++i) c += Vec3d(mesh.points[ids[i]]);
-                        const std::uint32_t centre = nextCentre++;
-                        mesh.points[centre] = Vec3f(c / double(k));
-                        for (std::uint32_t i = 0; i < k; ++i) emit({ids[i], ids[(i + 1) % k], centre});
-                    } else if (whole && k > 4) {
+                    if (whole && k > 4) {
                         for (std::uint32_t i = 0; i < k; ++i) mesh.indices[idx++] = ids[i];
                         mesh.offsets[++f] = idx;
                     } else if (k == 3) emit({ids[0], ids[1], ids[2]});

@@ -30,9 +30,10 @@ struct SurfaceFitStats {
 };
 
 // The mesh with vertices added where it strays from the surface. Polygons of five or more
-// corners (marching cubes' loops left whole: SurfaceOptions::keepLoops) are always fanned round
-// a centre, on the surface where the fan fits it, else at their mean. Orientation, watertightness and manifoldness are kept: a split edge
-// is split in every polygon that uses it, and a centre vertex fans only its own polygon.
+// corners (marching cubes' loops left whole: SurfaceOptions::keepLoops) are fanned round a centre
+// on the surface where that fan fits, else from their first corner as marching cubes fans them.
+// Orientation, watertightness and manifoldness are kept: a split edge is split in every polygon
+// that uses it, and a centre vertex fans only its own polygon.
 // `fixed`: vertices the fit must leave as marching cubes joined them (crossings at a node that a
 // weld will join after it): their edges are not split and their polygons get no new vertex.
 Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t>& fixed, const SurfaceFitOptions& options,
