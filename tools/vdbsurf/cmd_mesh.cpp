@@ -125,7 +125,8 @@ void runMesh(const MeshOptions& o) {
              " centred in them, " + std::to_string(rep.nodesOnCorners) + " onto corners, " + std::to_string(rep.nodesOnEdges) +
              " onto edges" +
              (rep.fitEdgesSplit + rep.fitCentres > 0 ? "; fit: " + std::to_string(rep.fitEdgesSplit) + " edges split and " +
-                                                           std::to_string(rep.fitCentres) + " centres added on the surface"
+                                                           std::to_string(rep.fitCentres) + " centres added on the surface (" +
+                                                           std::to_string(rep.fitFeatureCentres) + " on sharp edges or corners)"
                                                      : std::string()));
 
     const auto tWrite = Clock::now();
@@ -190,7 +191,8 @@ void runMesh(const MeshOptions& o) {
                            {"collapsed_polygons", rep.collapsedPolygons},
                            {"split_vertices", rep.splitVertices},
                            {"fit_edges_split", rep.fitEdgesSplit},
-                           {"fit_centres", rep.fitCentres}}},
+                           {"fit_centres", rep.fitCentres},
+                           {"fit_feature_centres", rep.fitFeatureCentres}}},
                          {"seconds",
                           {{"read", secondsRead},
                            {"lattice", rep.secondsLattice},

@@ -144,11 +144,15 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
             fo.iso = report.iso;
             fo.h = report.frame.h;
             fo.tolerance = request.fitTolerance;
+            fo.features = request.sharp;
+            fo.edgeCosine = request.sharpEdge;
+            fo.cornerThreshold = request.sharpCorner;
             fo.cancel = request.cancel;
             SurfaceFitStats fs;
             m = fitToSurface(field, std::move(m), toWeld, fo, &fs);
             report.fitEdgesSplit = fs.edgesSplit;
             report.fitCentres = fs.centresAdded;
+            report.fitFeatureCentres = fs.featureCentres;
             report.secondsFit = fs.seconds;
         };
     Mesh mesh = surface->mesh(fitBeforeWeld);

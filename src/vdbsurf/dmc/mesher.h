@@ -69,6 +69,7 @@ struct MeshReport {
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
     std::uint64_t nodesFlipped = 0; // sharp-feature nodes that changed side onto a tip (cases changed around them)
     std::uint64_t fitEdgesSplit = 0, fitCentres = 0; // vertices the surface fit added on edges and in polygons
+    std::uint64_t fitFeatureCentres = 0;             // of the centres: on sharp edges and corners
     double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0, secondsFit = 0;
     std::size_t vertices = 0, triangles = 0, quads = 0, otherPolygons = 0;
 };

@@ -2,6 +2,7 @@
 
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/planes.h"
 #include "vdbsurf/dmc/cube_table.h"
 #include "vdbsurf/dmc/edge_runs.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
@@ -97,18 +98,6 @@ struct FieldCheck {
 // A proposal's field checks: not yet made, passed, failed. Made at most once each, on demand by
 // any task; a pure function of the proposal, so a race writes the same value.
 enum : std::uint8_t { kUnchecked = 0, kPassed = 1, kFailed = 2 };
-
-// The point where the three planes (c_i, n_i) meet, if the system is well conditioned. Cramer's
-// rule by cross products: with unit normals the determinant is the volume they span, bounded
-// below here, so the quotient loses at most three digits; the same answer as an LU solve to
-// within rounding, for a fraction of its cost.
-bool intersectPlanes(const Vec3d n[3], const double rhs[3], Vec3d& out) {
-    const Vec3d c12 = cross(n[1], n[2]), c20 = cross(n[2], n[0]), c01 = cross(n[0], n[1]);
-    const double det = dot(n[0], c12);
-    if (!(std::fabs(det) >= 1e-3)) return false; // below this the point runs off
-    out = (c12 * rhs[0] + c20 * rhs[1] + c01 * rhs[2]) / det;
-    return std::isfinite(out.x) && std::isfinite(out.y) && std::isfinite(out.z);
-}
 
 Coord nearestNode(const LatticeFrame& frame, const Vec3d& p) {
     const Vec3d q = (p - frame.origin) / frame.h;

@@ -1,6 +1,7 @@
 #include "vdbsurf/dmc/surface_fit.h"
 
 #include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/planes.h"
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -31,6 +32,22 @@ constexpr double kConverged = 1e-6, kOnSurface = 1e-4;
 // angle of about θ/2 to each, θ being theirs); at a crease it has one face's normal (θ to the
 // other). A split point must keep within this share of θ of both ends.
 constexpr double kBetweenShare = 0.75;
+// Samples of the surface round a polygon lie on one plane when their normals agree this well
+// (cosine) and each lies within kOnPlane cells of the other's plane; a feature point must lie
+// that close to every plane the samples show.
+constexpr double kSamePlane = 0.995, kOnPlane = 0.02;
+// Normals closer to opposite than this (|n_a × n_b| below it) are the two sheets of a thin part,
+// not the faces of an edge (as in the sharp pass).
+constexpr double kMinSine = 0.25;
+// A polygon cutting a corner off strays less than one cutting across a wire (several polygons
+// share the cut): it is tried for a feature point from this share of the tolerance on, which
+// the fan's own checks then hold to the whole tolerance.
+constexpr double kFeatureShare = 0.5;
+// How far (in cells) a feature point may lie from the middle of the polygon fanned round it.
+constexpr double kMaxFeatureReach = 1.25;
+// A corner of the polygon this close (in cells) to the feature point already stands for it (the
+// sharp pass's bar for a kept corner).
+constexpr double kFeatureOnMesh = 0.1;
 
 using EdgeKey = std::uint64_t;
 
@@ -48,12 +65,13 @@ public:
     Fitter(const Field& field, const SurfaceFitOptions& o) : mField(field), mIso(o.iso), mH(o.h), mTolerance(o.tolerance) {}
 
     // Is p farther from the surface than the tolerance (first-order distance |f - iso| / |grad f|)?
-    bool strays(const Vec3d& p) const {
+    // (`share`: of the tolerance.)
+    bool strays(const Vec3d& p, double share = 1) const {
         Vec3d g;
         const double v = mField.valueAndGradient(p, g);
         const double len = length(g);
         if (!(len > 0) || !std::isfinite(len) || !std::isfinite(v)) return false;
-        return std::fabs(v - mIso) > mTolerance * mH * len;
+        return std::fabs(v - mIso) > share * mTolerance * mH * len;
     }
 
     // p moved onto the surface along the gradient (Newton's method), if that converges nearby
@@ -130,6 +148,85 @@ public:
             const Vec3d t = cross(ring[k] - ring[j], c - ring[j]);
             if (!(dot(t, (normals[j] + normals[k] + nc) * out) > 0)) return false;
         }
+        return true;
+    }
+
+    // The sharp edge or corner a polygon cuts across (its centre projects onto one face of it):
+    // where the planes of the surface meet, read from its corners and its sides' projected
+    // midpoints as the sharp pass reads a cell's crossings — the widest pair of normals an edge,
+    // a third across their line a corner, the point on the edge nearest the polygon's middle `c`
+    // otherwise. Taken only where every plane the samples show passes through it (one feature,
+    // not a curved surface), it lies near the polygon and on the surface, and the fan round it
+    // fits: each triangle's middle and each new edge's midpoint on the surface, each triangle
+    // facing the way the gradient at its middle does.
+    bool featureCentre(const std::vector<Vec3d>& ring, const Vec3d& c, double edgeCosine, double cornerThreshold, Vec3d& out) const {
+        const std::size_t n = ring.size();
+        struct Plane {
+            Vec3d n, p;
+        };
+        std::vector<Plane> planes;
+        auto add = [&](const Vec3d& p, const Vec3d& nn) {
+            if (dot(nn, nn) == 0) return;
+            for (const Plane& q : planes)
+                if (dot(nn, q.n) >= kSamePlane && std::fabs(dot(q.n, p - q.p)) <= kOnPlane * mH) return;
+            planes.push_back({nn, p});
+        };
+        auto hasEdge = [&] {
+            for (std::size_t i = 0; i < planes.size(); ++i)
+                for (std::size_t j = i + 1; j < planes.size(); ++j)
+                    if (dot(planes[i].n, planes[j].n) < edgeCosine) return true;
+            return false;
+        };
+        Vec3d newell, sum;
+        for (std::size_t j = 0; j < n; ++j) {
+            const Vec3d nj = normal(ring[j]);
+            add(ring[j], nj);
+            sum += nj;
+            newell += cross(ring[j], ring[(j + 1) % n]);
+        }
+        // (A feature shows at the corners already: the polygon's corners on it or across it.)
+        if (!hasEdge()) return false;
+        for (std::size_t j = 0; j < n; ++j) {
+            Vec3d m = (ring[j] + ring[(j + 1) % n]) * 0.5;
+            if (project(m)) add(m, normal(m));
+        }
+        int a = -1, b = -1;
+        double widest = edgeCosine;
+        for (std::size_t i = 0; i < planes.size(); ++i)
+            for (std::size_t j = i + 1; j < planes.size(); ++j) {
+                const double d = dot(planes[i].n, planes[j].n);
+                const Vec3d x = cross(planes[i].n, planes[j].n);
+                if (d < widest && dot(x, x) >= kMinSine * kMinSine) widest = d, a = int(i), b = int(j);
+            }
+        if (a < 0) return false;
+        const Plane &pa = planes[std::size_t(a)], &pb = planes[std::size_t(b)];
+        const Vec3d edge = normalized(cross(pa.n, pb.n));
+        int third = -1;
+        double phi = cornerThreshold;
+        for (std::size_t k = 0; k < planes.size(); ++k) {
+            const double d = std::fabs(dot(planes[k].n, edge));
+            if (int(k) != a && int(k) != b && d > phi) phi = d, third = int(k);
+        }
+        const Vec3d third3 = third >= 0 ? planes[std::size_t(third)].n : edge;
+        const Vec3d normals[3] = {pa.n, pb.n, third3};
+        const double rhs[3] = {dot(pa.n, pa.p), dot(pb.n, pb.p), third >= 0 ? dot(third3, planes[std::size_t(third)].p) : dot(edge, c)};
+        Vec3d x;
+        if (!intersectPlanes(normals, rhs, x) || !(length(x - c) <= kMaxFeatureReach * mH) || strays(x)) return false;
+        for (const Vec3d& r : ring) // the feature is on the mesh already
+            if (length(r - x) < kFeatureOnMesh * mH) return false;
+        for (const Plane& q : planes)
+            if (!(std::fabs(dot(q.n, x - q.p)) <= kOnPlane * mH)) return false;
+        const double agree = dot(newell, sum);
+        if (!(std::fabs(agree) > 0)) return false;
+        const double outward = agree > 0 ? 1.0 : -1.0;
+        for (std::size_t j = 0; j < n; ++j) {
+            const Vec3d &p0 = ring[j], &p1 = ring[(j + 1) % n];
+            if (p0 == p1) continue; // two crossings at one node: the weld collapses this triangle
+            const Vec3d middle = (p0 + p1 + x) / 3.0;
+            if (strays(middle) || strays((p0 + x) * 0.5)) return false;
+            if (!(dot(cross(p1 - p0, x - p0), normal(middle)) * outward > 0)) return false;
+        }
+        out = x;
         return true;
     }
 
@@ -228,6 +325,18 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
     std::vector<Kind> kind(polygons, Kind::Kept);
     std::vector<std::uint32_t> apex(polygons, 0), ringSize(polygons, 0);
     std::vector<Vec3f> centre(polygons);
+    std::vector<std::uint8_t> feature(polygons, 0); // a centre on a sharp edge or corner
+    // A fan round a new vertex adds edges from it alone. Where the weld will join two of the
+    // ring's vertices (crossings at one node: one point) next to each other, their triangle
+    // collapses to an edge of its neighbours; two apart, the fan would fold.
+    auto twoAtOneNode = [&](std::size_t p) {
+        const std::uint32_t* q = mesh.polygon(p);
+        const std::uint32_t k = mesh.polygonSize(p);
+        for (std::uint32_t i = 0; i < k; ++i)
+            for (std::uint32_t j = i + 2; j < k && welded[q[i]]; ++j)
+                if (welded[q[j]] && !(i == 0 && j == k - 1) && mesh.points[q[i]] == mesh.points[q[j]]) return true;
+        return false;
+    };
     for (;;) {
         tbb::enumerable_thread_specific<std::vector<EdgeKey>> refusedLocal;
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, polygons, 256), [&](const tbb::blocked_range<std::size_t>& r) {
@@ -247,15 +356,32 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
                     while (ring[apex[p]] < firstSplit) ++apex[p];
                     continue;
                 }
-                if (ring.size() <= 3) continue;
+                // (Triangles only for features: where a smooth surface bends away from one, its
+                // sides were split.)
+                if (ring.size() <= 3 && !(options.features && holdsWeld[p])) continue;
                 at.resize(ring.size());
                 Vec3d c;
                 for (std::size_t j = 0; j < ring.size(); ++j) c += (at[j] = ringPoint(ring[j]));
                 c = c / double(ring.size());
-                if (!holdsWeld[p] && (split || fitter.strays(c)) && fitter.project(c) && fitter.fanFits(at, c)) {
-                    kind[p] = Kind::Centre;
-                    centre[p] = Vec3f(c);
-                } else if (split) {
+                bool centred = false;
+                const bool strays = split || fitter.strays(c, options.features && holdsWeld[p] ? kFeatureShare : 1);
+                if (strays) {
+                    Vec3d x = c;
+                    if (ring.size() > 3 && !holdsWeld[p] && (split || fitter.strays(c)) && fitter.project(x) && fitter.fanFits(at, x)) {
+                        centred = true;
+                        feature[p] = 0;
+                    } else if (options.features && holdsWeld[p] && !twoAtOneNode(p) &&
+                               fitter.featureCentre(at, c, options.edgeCosine, options.cornerThreshold, x)) {
+                        centred = true;
+                        feature[p] = 1;
+                    }
+                    if (centred) {
+                        kind[p] = Kind::Centre;
+                        centre[p] = Vec3f(x);
+                    }
+                }
+                if (centred || ring.size() <= 3) continue;
+                if (split) {
                     for (std::size_t j = 0; j < k; ++j)
                         if (splitVertex(q[j], q[(j + 1) % k]) != noSplit) refusedLocal.local().push_back(undirectedEdgeKey(q[j], q[(j + 1) % k]));
                 } else if (k > 4) {
@@ -274,7 +400,7 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
                      splits.end());
     }
 
-    std::uint64_t centres = 0;
+    std::uint64_t centres = 0, featureCentres = 0;
     bool changed = !splits.empty();
     std::vector<std::uint32_t> firstPolygon(polygons + 1), firstIndex(polygons + 1), centreVertex(polygons, noSplit);
     for (std::size_t p = 0; p < polygons; ++p) {
@@ -286,6 +412,7 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
         } else if (kind[p] == Kind::Centre) {
             outPolygons = n, outIndices = 3 * n;
             centreVertex[p] = firstSplit + std::uint32_t(splits.size() + centres++);
+            featureCentres += feature[p];
         }
         firstPolygon[p + 1] = firstPolygon[p] + outPolygons;
         firstIndex[p + 1] = firstIndex[p] + outIndices;
@@ -293,6 +420,7 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
     if (stats) {
         stats->edgesSplit = splits.size();
         stats->centresAdded = centres;
+        stats->featureCentres = featureCentres;
     }
     if (!changed && centres == 0) {
         if (stats) stats->seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -21,11 +21,16 @@ struct SurfaceFitOptions {
     double iso = 0;
     double h = 0;           // lattice spacing, world units
     double tolerance = 0.2; // in cells: how far an edge's or a polygon's middle may stray
+    // A polygon that strays across a sharp edge or corner the lattice could not place a node on
+    // (a cube's corner whose cell holds no node that could reach it) is fanned round the feature
+    // point its faces' planes meet at: `features` on; the thresholds as the sharp pass's.
+    bool features = false;
+    double edgeCosine = 0.9, cornerThreshold = 0.7;
     const CancelToken* cancel = nullptr;
 };
 
 struct SurfaceFitStats {
-    std::uint64_t edgesSplit = 0, centresAdded = 0;
+    std::uint64_t edgesSplit = 0, centresAdded = 0, featureCentres = 0; // (features among the centres)
     double seconds = 0;
 };
 
