@@ -39,10 +39,12 @@ constexpr double kSamePlane = 0.995, kOnPlane = 0.02;
 // Normals closer to opposite than this (|n_a × n_b| below it) are the two sheets of a thin part,
 // not the faces of an edge (as in the sharp pass).
 constexpr double kMinSine = 0.25;
-// A polygon cutting a corner off strays less than one cutting across a wire (several polygons
-// share the cut): it is tried for a feature point from this share of the tolerance on, which
-// the fan's own checks then hold to the whole tolerance.
-constexpr double kFeatureShare = 0.5;
+// A polygon cutting a corner off may stray little at its middle (several polygons share the cut,
+// and a corner 0.3 H away leaves a triangle's middle 0.1 H off): beside a feature node it is
+// tried for a feature point from this share of the tolerance on (0.01 H at the default; the
+// feature's own checks decide, its planes first, which rule out a curved surface from its
+// corners' gradients alone), and the fan's checks hold it to the whole tolerance.
+constexpr double kFeatureShare = 0.05;
 // How far (in cells) a feature point may lie from the middle of the polygon fanned round it.
 constexpr double kMaxFeatureReach = 1.25;
 // A corner of the polygon this close (in cells) to the feature point already stands for it (the
@@ -171,11 +173,31 @@ public:
                 if (dot(nn, q.n) >= kSamePlane && std::fabs(dot(q.n, p - q.p)) <= kOnPlane * mH) return;
             planes.push_back({nn, p});
         };
-        auto hasEdge = [&] {
+        // The feature the planes show, and whether every plane passes through it.
+        auto meet = [&](Vec3d& x) {
+            int a = -1, b = -1;
+            double widest = edgeCosine;
             for (std::size_t i = 0; i < planes.size(); ++i)
-                for (std::size_t j = i + 1; j < planes.size(); ++j)
-                    if (dot(planes[i].n, planes[j].n) < edgeCosine) return true;
-            return false;
+                for (std::size_t j = i + 1; j < planes.size(); ++j) {
+                    const double d = dot(planes[i].n, planes[j].n);
+                    const Vec3d cr = cross(planes[i].n, planes[j].n);
+                    if (d < widest && dot(cr, cr) >= kMinSine * kMinSine) widest = d, a = int(i), b = int(j);
+                }
+            if (a < 0) return false;
+            const Plane &pa = planes[std::size_t(a)], &pb = planes[std::size_t(b)];
+            const Vec3d edge = normalized(cross(pa.n, pb.n));
+            int third = -1;
+            double phi = cornerThreshold;
+            for (std::size_t k = 0; k < planes.size(); ++k) {
+                const double d = std::fabs(dot(planes[k].n, edge));
+                if (int(k) != a && int(k) != b && d > phi) phi = d, third = int(k);
+            }
+            const Vec3d normals[3] = {pa.n, pb.n, third >= 0 ? planes[std::size_t(third)].n : edge};
+            const double rhs[3] = {dot(pa.n, pa.p), dot(pb.n, pb.p), third >= 0 ? dot(normals[2], planes[std::size_t(third)].p) : dot(edge, c)};
+            if (!intersectPlanes(normals, rhs, x)) return false;
+            for (const Plane& q : planes)
+                if (!(std::fabs(dot(q.n, x - q.p)) <= kOnPlane * mH)) return false;
+            return true;
         };
         Vec3d newell, sum;
         for (std::size_t j = 0; j < n; ++j) {
@@ -184,38 +206,17 @@ public:
             sum += nj;
             newell += cross(ring[j], ring[(j + 1) % n]);
         }
-        // (A feature shows at the corners already: the polygon's corners on it or across it.)
-        if (!hasEdge()) return false;
+        // The corners alone show the feature, or part of it (its corners lie on its faces, or on
+        // it): a curved surface, whose planes meet nowhere, is known before any projection.
+        Vec3d x;
+        if (!meet(x)) return false;
         for (std::size_t j = 0; j < n; ++j) {
             Vec3d m = (ring[j] + ring[(j + 1) % n]) * 0.5;
             if (project(m)) add(m, normal(m));
         }
-        int a = -1, b = -1;
-        double widest = edgeCosine;
-        for (std::size_t i = 0; i < planes.size(); ++i)
-            for (std::size_t j = i + 1; j < planes.size(); ++j) {
-                const double d = dot(planes[i].n, planes[j].n);
-                const Vec3d x = cross(planes[i].n, planes[j].n);
-                if (d < widest && dot(x, x) >= kMinSine * kMinSine) widest = d, a = int(i), b = int(j);
-            }
-        if (a < 0) return false;
-        const Plane &pa = planes[std::size_t(a)], &pb = planes[std::size_t(b)];
-        const Vec3d edge = normalized(cross(pa.n, pb.n));
-        int third = -1;
-        double phi = cornerThreshold;
-        for (std::size_t k = 0; k < planes.size(); ++k) {
-            const double d = std::fabs(dot(planes[k].n, edge));
-            if (int(k) != a && int(k) != b && d > phi) phi = d, third = int(k);
-        }
-        const Vec3d third3 = third >= 0 ? planes[std::size_t(third)].n : edge;
-        const Vec3d normals[3] = {pa.n, pb.n, third3};
-        const double rhs[3] = {dot(pa.n, pa.p), dot(pb.n, pb.p), third >= 0 ? dot(third3, planes[std::size_t(third)].p) : dot(edge, c)};
-        Vec3d x;
-        if (!intersectPlanes(normals, rhs, x) || !(length(x - c) <= kMaxFeatureReach * mH) || strays(x)) return false;
+        if (!meet(x) || !(length(x - c) <= kMaxFeatureReach * mH) || strays(x)) return false;
         for (const Vec3d& r : ring) // the feature is on the mesh already
             if (length(r - x) < kFeatureOnMesh * mH) return false;
-        for (const Plane& q : planes)
-            if (!(std::fabs(dot(q.n, x - q.p)) <= kOnPlane * mH)) return false;
         const double agree = dot(newell, sum);
         if (!(std::fabs(agree) > 0)) return false;
         const double outward = agree > 0 ? 1.0 : -1.0;
