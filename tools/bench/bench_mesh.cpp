@@ -91,13 +91,13 @@ int main(int argc, char** argv) {
         };
         // volumeToMesh's own speed-up on this machine, beside DMC's: a 2-thread target is only as
         // good as the machine's cores, which these shared VMs do not always give in full.
-        double refSpeedup = 0;
+        double refOneThread = 0;
         if (limit.threads() > 1) {
             ThreadLimit one(1);
-            refSpeedup = runReference().seconds;
+            refOneThread = runReference().seconds;
         }
         const bench::Measure ref = runReference();
-        if (refSpeedup > 0) refSpeedup /= ref.seconds;
+        const double refSpeedup = refOneThread > 0 ? refOneThread / ref.seconds : 0;
         const std::size_t refPolys = tris.size() + quads.size(), refVerts = points.size();
         points = {};
         tris = {};

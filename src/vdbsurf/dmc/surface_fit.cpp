@@ -153,8 +153,8 @@ public:
         return true;
     }
 
-    // The sharp edge or corner a polygon cuts across (its centre projects onto one face of it):
-    // where the planes of the surface meet, read from its corners and its sides' projected
+    // The sharp edge or corner a polygon beside a feature node cuts across (the lattice had no
+    // node that could reach it): where the planes of the surface meet, read from its corners and its sides' projected
     // midpoints as the sharp pass reads a cell's crossings — the widest pair of normals an edge,
     // a third across their line a corner, the point on the edge nearest the polygon's middle `c`
     // otherwise. Taken only where every plane the samples show passes through it (one feature,
@@ -368,7 +368,8 @@ Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t
                 const bool strays = split || fitter.strays(c, options.features && holdsWeld[p] ? kFeatureShare : 1);
                 if (strays) {
                     Vec3d x = c;
-                    if (ring.size() > 3 && !holdsWeld[p] && (split || fitter.strays(c)) && fitter.project(x) && fitter.fanFits(at, x)) {
+                    // (Only polygons beside a feature node were held to the smaller share.)
+                    if (ring.size() > 3 && !holdsWeld[p] && fitter.project(x) && fitter.fanFits(at, x)) {
                         centred = true;
                         feature[p] = 0;
                     } else if (options.features && holdsWeld[p] && !twoAtOneNode(p) &&

@@ -40,7 +40,9 @@ struct SurfaceFitStats {
 // Orientation, watertightness and manifoldness are kept: a split edge is split in every polygon
 // that uses it, and a centre vertex fans only its own polygon.
 // `fixed`: vertices the fit must leave as marching cubes joined them (crossings at a node that a
-// weld will join after it): their edges are not split and their polygons get no new vertex.
+// weld will join after it): their edges are not split, and their polygons get a new vertex only
+// on a sharp edge or corner (`features`), and only where no two of their crossings at one node
+// lie apart in the ring.
 Mesh fitToSurface(const Field& field, Mesh mesh, const std::vector<std::uint32_t>& fixed, const SurfaceFitOptions& options,
                   SurfaceFitStats* stats = nullptr);
 
