@@ -948,6 +948,35 @@ TEST_CASE("on noisy fog (smoke_fog at its voxel size), few nodes go onto edges: 
     CHECK(rep.nodesOnEdges > 0); // the file's sharp ridges are still found
 }
 
+TEST_CASE("on a noisy grid at its own voxel size, leaves whose surface is not resolved get no sharp feature") {
+    // A fog ball with noise in every voxel: nearly every surface cell's normals turn past the edge
+    // threshold, and the tangent planes meet anywhere. Those leaves hold no candidates, so DMC
+    // (nothing to move into at the grid's own voxel size) is marching cubes there; without the
+    // rule the sharp pass placed nodes on noise. A clean grid keeps every leaf (the cube's edges
+    // in "skipping cells whose corner gradients rule out an edge" below).
+    const GridBasePtr base = test::makeSphereFog(1.0, 0.3, 0.05);
+    const auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> noise(-0.25f, 0.25f);
+    for (auto it = grid->tree().beginValueOn(); it; ++it) it.setValue(std::clamp(*it + noise(rng), 0.0f, 1.0f));
+    const GridField field(base, "noisy fog");
+    MeshReport reports[2];
+    Mesh meshes[2];
+    for (int dmc = 0; dmc < 2; ++dmc) {
+        MeshRequest req;
+        req.iso = 0.5;
+        req.method = dmc ? MeshMethod::Dmc : MeshMethod::MarchingCubes;
+        meshes[dmc] = meshField(field, req, reports[dmc]);
+    }
+    const MeshReport& rep = reports[1];
+    INFO(rep.unresolvedLeaves << " unresolved leaves, " << rep.nodesOnEdges << " nodes on edges, " << rep.nodesOnCorners
+                              << " on corners, " << rep.cellsWithSurface << " cells with surface");
+    CHECK(rep.unresolvedLeaves > 0);
+    CHECK(rep.nodesOnEdges + rep.nodesOnCorners == 0);
+    CHECK(meshes[1].points == meshes[0].points);
+    CHECK(meshes[1].indices == meshes[0].indices);
+}
+
 TEST_CASE("a cylinder's rims, curved edges 4 cells around, lie on the mesh") {
     // Neighbouring cells see two tangents of the rim, not one line: they confirm each other where
     // the tangents meet nearby at a small angle (with straight lines alone the rims lay 0.048 H
@@ -1004,6 +1033,7 @@ TEST_CASE("on a grid at its own voxel size, skipping cells whose corner gradient
             so.normals = true;
             so.sharpEdgeCosine = all ? 1.0 : 0.9;
             LatticeSurface surface(field, lattice, nullptr, so);
+            CHECK(surface.stats().unresolvedLeaves == 0); // a resolved surface: every leaf is judged
             LatticeDeformation deformation;
             SharpOptions sh;
             placeSharpFeatures(field, lattice, surface, sh, deformation, &stats[all]);
@@ -1098,16 +1128,17 @@ TEST_CASE("two balls touching exactly at a lattice node stay two vertex-manifold
 }
 
 TEST_CASE("after nodes flip onto feature tips, patching the leaves around them gives the mesh a full rebuild gives") {
-    // Two cones on a ball at H 0.05 (2 flips); the armadillo and smoke grids (15 flips, and 6 on
-    // smoke with a corner threshold of 0.5), when the shared data is there. The patch recomputes
+    // Two cones on a ball at H 0.05 (2 flips); the armadillo and smoke grids (15 flips, and 1 on
+    // smoke with edge and corner thresholds of 0.5), when the shared data is there. The patch recomputes
     // only leaves near changed nodes or with new cells.
-    auto both = [](const Field& field, std::optional<double> h, double sharpCorner = 0.7) {
+    auto both = [](const Field& field, std::optional<double> h, double sharpCorner = 0.7, double sharpEdge = 0.9) {
         Mesh meshes[2];
         MeshReport reports[2];
         for (int patch = 0; patch < 2; ++patch) {
             MeshRequest req;
             req.voxelSize = h;
             req.sharpCorner = sharpCorner;
+            req.sharpEdge = sharpEdge;
             req.patchAfterFlips = patch == 1;
             meshes[patch] = meshField(field, req, reports[patch]);
         }
@@ -1133,9 +1164,9 @@ TEST_CASE("after nodes flip onto feature tips, patching the leaves around them g
     both(GridField(readScalarGrid(armadillo, "").grid, "armadillo"), std::nullopt);
     // Fog whose voxels hold the iso value exactly, some of them placed on features: their
     // vertices must follow the node in leaves that are not recomputed too.
-    // Its edges are mostly noise that no neighbour confirms; with a lower corner threshold more of
-    // its corners flip.
-    both(GridField(readScalarGrid(test::sharedData("vdb/smoke_fog.vdb"), "").grid, "smoke"), std::nullopt, 0.5);
+    // Most of its leaves are too noisy for features at the default edge threshold (no flip there);
+    // with lower thresholds fewer leaves are, and a corner flips.
+    both(GridField(readScalarGrid(test::sharedData("vdb/smoke_fog.vdb"), "").grid, "smoke"), std::nullopt, 0.5, 0.5);
 }
 
 TEST_CASE("DMC output is byte-identical at 1 and 2 threads") {

@@ -124,6 +124,9 @@ void runMesh(const MeshOptions& o) {
         note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts, " + std::to_string(rep.thinNodesCentred) +
              " centred in them, " + std::to_string(rep.nodesOnCorners) + " onto corners, " + std::to_string(rep.nodesOnEdges) +
              " onto edges" +
+             (rep.unresolvedLeaves > 0 ? " (" + std::to_string(rep.unresolvedLeaves) +
+                                             " leaves too noisy for sharp features at this spacing)"
+                                       : std::string()) +
              (rep.fitEdgesSplit + rep.fitCentres > 0 ? "; fit: " + std::to_string(rep.fitEdgesSplit) + " edges split and " +
                                                            std::to_string(rep.fitCentres) + " centres added on the surface (" +
                                                            std::to_string(rep.fitFeatureCentres) + " on sharp edges or corners)"
@@ -187,6 +190,7 @@ void runMesh(const MeshOptions& o) {
                            {"nodes_on_edges_second_round", rep.nodesAlongEdges},
                            {"nodes_on_corners", rep.nodesOnCorners},
                            {"nodes_flipped", rep.nodesFlipped},
+                           {"sharp_unresolved_leaves", rep.unresolvedLeaves},
                            {"welded_vertices", rep.weldedVertices},
                            {"collapsed_polygons", rep.collapsedPolygons},
                            {"split_vertices", rep.splitVertices},

@@ -34,7 +34,9 @@ struct SurfaceOptions {
     bool keepLoops = false;
     bool normals = false;     // also compute the unit outward normal at every crossing
     // With normals: cells whose crossing normals provably all lie within this cosine of each
-    // other are not sharp candidates (see node_gradients.h); 1 makes every cell a candidate.
+    // other are not sharp candidates (see node_gradients.h), nor are the cells of a leaf where
+    // nearly all surface cells would be (unresolved: SurfaceStats::unresolvedLeaves); 1 makes
+    // every cell a candidate.
     double sharpEdgeCosine = 1.0;
     const CancelToken* cancel = nullptr;
 };
@@ -45,6 +47,9 @@ struct SurfaceStats {
     std::uint64_t weldedVertices = 0;
     std::uint64_t collapsedPolygons = 0;
     std::uint64_t splitVertices = 0; // welded nodes given one copy per further fan of polygons
+    // Leaves where nearly every surface cell's normals may turn past the edge threshold: the
+    // surface is not resolved there (noise) and they hold no sharp candidates.
+    std::uint64_t unresolvedLeaves = 0;
     double seconds = 0;
 };
 

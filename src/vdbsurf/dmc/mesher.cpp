@@ -97,6 +97,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     so.sharpEdgeCosine = request.sharpEdge;
     so.cancel = request.cancel;
     auto surface = std::make_unique<LatticeSurface>(field, lattice, &deformation, so);
+    report.unresolvedLeaves = surface->stats().unresolvedLeaves; // (a rebuilt surface has no normals)
     if (dmc && request.sharp) {
         SharpOptions sh;
         sh.iso = report.iso;

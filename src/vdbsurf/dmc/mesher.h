@@ -66,6 +66,9 @@ struct MeshReport {
     std::uint64_t thinNodesCentred = 0; // moved within their side to the middle of a thin part (centreThinParts)
     std::uint64_t sharpEdgeCells = 0, sharpCornerCells = 0, sharpRejected = 0, nodesOnEdges = 0, nodesOnCorners = 0;
     std::uint64_t nodesAlongEdges = 0; // of nodesOnEdges, placed between the cells' choices (second round)
+    // Lattice leaves the sharp pass skipped: nearly every surface cell's normals may turn past the
+    // edge threshold, so the surface is not resolved there (noise; grids at their voxel size only).
+    std::uint64_t unresolvedLeaves = 0;
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
     std::uint64_t nodesFlipped = 0; // sharp-feature nodes that changed side onto a tip (cases changed around them)
     std::uint64_t fitEdgesSplit = 0, fitCentres = 0; // vertices the surface fit added on edges and in polygons
