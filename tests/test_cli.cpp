@@ -256,6 +256,7 @@ TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "1e-9", "-o", out}, "--voxel-size", "at most", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "1e-5", "-o", out}, "--voxel-size", "too fine", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--iso", "7", "-o", out}, "good.vdb", "no surface", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--sharp-noise", "0", "-o", out}, "--sharp-noise", "(0, 1]", before);
     expectFailure(dir, {"mesh", "--expr", "x^2 + * 2", "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1", "-o", out}, "--expr",
                   "column 7", before);
     expectFailure(dir, {"mesh", "--expr", "sqrt(x) - 0.5", "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1", "-o", out},

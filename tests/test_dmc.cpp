@@ -954,27 +954,46 @@ TEST_CASE("on a noisy grid at its own voxel size, leaves whose surface is not re
     // (nothing to move into at the grid's own voxel size) is marching cubes there; without the
     // rule the sharp pass placed nodes on noise. A clean grid keeps every leaf (the cube's edges
     // in "skipping cells whose corner gradients rule out an edge" below).
-    const GridBasePtr base = test::makeSphereFog(1.0, 0.3, 0.05);
-    const auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
-    std::mt19937 rng(3);
-    std::uniform_real_distribution<float> noise(-0.25f, 0.25f);
-    for (auto it = grid->tree().beginValueOn(); it; ++it) it.setValue(std::clamp(*it + noise(rng), 0.0f, 1.0f));
-    const GridField field(base, "noisy fog");
-    MeshReport reports[2];
-    Mesh meshes[2];
-    for (int dmc = 0; dmc < 2; ++dmc) {
+    auto noisyBall = [](float amplitude) {
+        const GridBasePtr base = test::makeSphereFog(1.0, 0.3, 0.05);
+        const auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(base);
+        std::mt19937 rng(3);
+        std::uniform_real_distribution<float> noise(-amplitude, amplitude);
+        for (auto it = grid->tree().beginValueOn(); it; ++it) it.setValue(std::clamp(*it + noise(rng), 0.0f, 1.0f));
+        return base;
+    };
+    auto mesh = [](const Field& field, MeshMethod method, double share, MeshReport& rep) {
         MeshRequest req;
         req.iso = 0.5;
-        req.method = dmc ? MeshMethod::Dmc : MeshMethod::MarchingCubes;
-        meshes[dmc] = meshField(field, req, reports[dmc]);
+        req.method = method;
+        req.sharpNoiseShare = share;
+        return meshField(field, req, rep);
+    };
+    {
+        const GridField field(noisyBall(0.25f), "noisy fog");
+        MeshReport mcReport, rep;
+        const Mesh mc = mesh(field, MeshMethod::MarchingCubes, 0.95, mcReport);
+        const Mesh dmc = mesh(field, MeshMethod::Dmc, 0.95, rep);
+        INFO(rep.unresolvedLeaves << " unresolved leaves, " << rep.nodesOnEdges << " nodes on edges, " << rep.nodesOnCorners
+                                  << " on corners, " << rep.cellsWithSurface << " cells with surface");
+        CHECK(rep.unresolvedLeaves > 0);
+        CHECK(rep.nodesOnEdges + rep.nodesOnCorners == 0);
+        CHECK(dmc.points == mc.points);
+        CHECK(dmc.indices == mc.indices);
     }
-    const MeshReport& rep = reports[1];
-    INFO(rep.unresolvedLeaves << " unresolved leaves, " << rep.nodesOnEdges << " nodes on edges, " << rep.nodesOnCorners
-                              << " on corners, " << rep.cellsWithSurface << " cells with surface");
-    CHECK(rep.unresolvedLeaves > 0);
-    CHECK(rep.nodesOnEdges + rep.nodesOnCorners == 0);
-    CHECK(meshes[1].points == meshes[0].points);
-    CHECK(meshes[1].indices == meshes[0].indices);
+    // --sharp-noise on milder noise, where leaves differ: a lower share takes more leaves for
+    // noise, 1 only those where every surface cell may hold an edge (103 / 35 / 1 leaves).
+    const GridField field(noisyBall(0.1f), "noisy fog");
+    std::uint64_t unresolved[3];
+    const double shares[3] = {0.8, 0.95, 1.0};
+    for (int k = 0; k < 3; ++k) {
+        MeshReport r;
+        mesh(field, MeshMethod::Dmc, shares[k], r);
+        unresolved[k] = r.unresolvedLeaves;
+    }
+    INFO("unresolved leaves at shares 0.8 / 0.95 / 1: " << unresolved[0] << " / " << unresolved[1] << " / " << unresolved[2]);
+    CHECK(unresolved[0] > unresolved[1]);
+    CHECK(unresolved[1] > unresolved[2]);
 }
 
 TEST_CASE("a cylinder's rims, curved edges 4 cells around, lie on the mesh") {

@@ -35,7 +35,7 @@ struct MeshOptions {
     std::string input, output, expr, bbox, grid, stats, method = "dmc", inside, latticeOut;
     std::optional<double> iso, voxelSize;
     int threads = 0, searchSteps = 5;
-    double sharpEdge = 0.9, sharpCorner = 0.7;
+    double sharpEdge = 0.9, sharpCorner = 0.7, sharpNoise = 0.95;
     std::optional<double> fitTolerance;
     bool triangles = false, noThin = false, noSharp = false, noFit = false;
 };
@@ -109,6 +109,7 @@ void runMesh(const MeshOptions& o) {
     req.searchSteps = o.searchSteps;
     req.sharpEdge = o.sharpEdge;
     req.sharpCorner = o.sharpCorner;
+    req.sharpNoiseShare = o.sharpNoise;
     req.cancel = &processCancelToken();
     if (!o.latticeOut.empty())
         req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation) {
@@ -229,6 +230,10 @@ Action addMeshCommand(CLI::App& app) {
     sub->add_option("--sharp-edge", o->sharpEdge, "DMC: normals whose cosine is below this make an edge (default 0.9)")
         ->check(CLI::Range(-1.0, 1.0));
     sub->add_option("--sharp-corner", o->sharpCorner, "DMC: a third normal this aligned with the edge makes a corner (default 0.7)")
+        ->check(CLI::Range(0.0, 1.0));
+    sub->add_option("--sharp-noise", o->sharpNoise,
+                    "DMC, a grid at its own voxel size: lattice leaves where at least this share of the surface cells may hold "
+                    "an edge are taken as noise and get no sharp features (default 0.95; 1: only where all may)")
         ->check(CLI::Range(0.0, 1.0));
     sub->add_flag("--no-thin", o->noThin, "DMC: skip the thin-part search");
     sub->add_flag("--no-sharp", o->noSharp, "DMC: skip sharp edges and corners");

@@ -65,20 +65,20 @@ struct LeafWork {
 // against marching cubes' 0.9700, and 3 more pieces) at 1.5 times the cost of the rest of the
 // mesher. Such a leaf holds no candidates. The share is set high enough that hard-surface detail
 // 6 to 12 voxels wide keeps every feature (random boxes on a slab: at 80 % a third of their edge
-// nodes went and the corners moved 0.03 H away at the median; at 95 % none of that); detail 2 to
+// nodes went and the corners moved 0.03 H away at the median; at 95 %, the default, none of that); detail 2 to
 // 4 voxels wide loses some edge nodes and its corners stay where they were. Judged on node
 // gradients only (a grid at its own voxel size): elsewhere every cell is a candidate, and the
 // field is what it says; nor where the edge cosine is 1 (every cell a candidate, asked for).
-// Leaves with few surface cells (a corner's tip clipping a leaf) are not judged.
-constexpr double kUnresolvedShare = 0.95;
+// Leaves with few surface cells (a corner's tip clipping a leaf) are not judged. The share is
+// SurfaceOptions::unresolvedShare (--sharp-noise).
 constexpr std::uint64_t kUnresolvedMinCells = 32;
 
-bool unresolvedForFeatures(const LeafWork& w) {
+bool unresolvedForFeatures(const LeafWork& w, double share) {
     if (w.cellsWithSurface < kUnresolvedMinCells) return false;
     std::uint64_t candidates = 0;
     for (std::size_t rank = 0; rank < w.config.size(); ++rank)
         if (w.config[rank] != 0 && w.config[rank] != 255) candidates += w.sharpCandidate[rank];
-    return double(candidates) >= kUnresolvedShare * double(w.cellsWithSurface);
+    return double(candidates) >= share * double(w.cellsWithSurface);
 }
 
 inline std::uint32_t cellRank(const MaskLeaf& leaf, const LeafWork& w, openvdb::Index offset) {
@@ -410,7 +410,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     w.indexCount += loopIndices(cc.loopSize[l], tri, options.keepLoops);
                 }
             }
-            if (nodeGradients && options.sharpEdgeCosine < 1 && unresolvedForFeatures(w)) {
+            if (nodeGradients && options.sharpEdgeCosine < 1 && unresolvedForFeatures(w, options.unresolvedShare)) {
                 std::fill(w.sharpCandidate.begin(), w.sharpCandidate.end(), std::uint8_t(0));
                 w.unresolved = true;
             }

@@ -38,6 +38,9 @@ struct SurfaceOptions {
     // nearly all surface cells would be (unresolved: SurfaceStats::unresolvedLeaves); 1 makes
     // every cell a candidate.
     double sharpEdgeCosine = 1.0;
+    // With normals on a grid at its own voxel size: a leaf where at least this share of 32 or
+    // more surface cells are candidates is not resolved (noise) and none of its cells is one.
+    double unresolvedShare = 0.95;
     const CancelToken* cancel = nullptr;
 };
 

@@ -48,6 +48,8 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
 
     const bool dmc = request.method == MeshMethod::Dmc;
     const bool fit = dmc && request.fit && (request.thin || request.sharp) && !field.edgesAreLinear(report.frame);
+    if (dmc && request.sharp && !(request.sharpNoiseShare > 0 && request.sharpNoiseShare <= 1))
+        throw Error("--sharp-noise", "must be a share of a leaf's surface cells in (0, 1], not " + messageNumber(request.sharpNoiseShare));
     if (fit && !(request.fitTolerance > 0 && request.fitTolerance <= 1))
         throw Error("--fit-tolerance", "must be a number of cells in (0, 1], not " + messageNumber(request.fitTolerance));
     const openvdb::CoordBBox range = latticeCellRange(field, report.frame);
@@ -95,6 +97,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     so.keepLoops = fit; // the fit fans them
     so.normals = dmc && request.sharp;
     so.sharpEdgeCosine = request.sharpEdge;
+    so.unresolvedShare = request.sharpNoiseShare;
     so.cancel = request.cancel;
     auto surface = std::make_unique<LatticeSurface>(field, lattice, &deformation, so);
     report.unresolvedLeaves = surface->stats().unresolvedLeaves; // (a rebuilt surface has no normals)

@@ -39,6 +39,9 @@ struct MeshRequest {
     double fitTolerance = 0.2;
     int searchSteps = 5;
     double sharpEdge = 0.9, sharpCorner = 0.7;
+    // On a grid at its own voxel size, lattice leaves where at least this share of the surface
+    // cells may hold an edge are noise and get no sharp features (--sharp-noise; in (0, 1]).
+    double sharpNoiseShare = 0.95;
     // After nodes flip onto feature tips, recompute only the lattice leaves around them (false:
     // build the whole surface again; same mesh, for tests).
     bool patchAfterFlips = true;
