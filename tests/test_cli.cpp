@@ -204,6 +204,32 @@ TEST_CASE("unnamed grids are meshed and small valid files are read as valid") {
                   dir.files());
 }
 
+TEST_CASE("a terrain level set, its band open at the sides of its box, is meshed where its band is") {
+    // A heightfield's signed distance sampled in a box: the flood fill puts inside tiles under
+    // the band, far beyond it. vdbsurf refused it ("too fine for this machine's memory"): its
+    // domain spanned those tiles. Now the sheet comes out where the band is, as volumeToMesh's.
+    test::TempDir dir;
+    const double h = 0.02;
+    auto height = [](double x, double y) { return 0.2 * std::sin(2 * x) * std::cos(3 * y); };
+    auto g = test::makeLevelSetFromDistance([&](const Vec3d& p) { return p.z - height(p.x, p.y); }, Box3{{-1, -1, -0.5}, {1, 1, 0.5}}, h);
+    g->setName("terrain");
+    test::writeGrids(dir.path("terrain.vdb"), {g});
+    const auto r = runVdbsurf({"mesh", dir.path("terrain.vdb"), "-o", dir.path("terrain.obj")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    const Mesh m = readMesh(dir.path("terrain.obj"));
+    const Box3 b = m.bounds();
+    CHECK(b.min.x > -1.0 - 0.5 * h); // (DMC's nodes move within half a cell)
+    CHECK(b.max.x < 1.02 + 0.5 * h);
+    CHECK(b.max.z < 0.26);
+    CHECK(b.min.z > -0.26);
+    // Most of it is the sheet (where the band ends open, the fill's signs leave some walls).
+    std::size_t onSheet = 0;
+    for (const Vec3f& p : m.points) onSheet += std::fabs(double(p.z) - height(p.x, p.y)) < 0.25 * h;
+    CHECK(onSheet > 0.9 * double(m.points.size()));
+    CHECK(m.points.size() > 10000); // the 2 x 2 sheet at 0.02: ~10,000 voxels' worth
+}
+
 TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output") {
     test::TempDir dir;
     writeSphereFile(dir.path("good.vdb"));

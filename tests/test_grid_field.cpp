@@ -150,7 +150,7 @@ TEST_CASE("grid bounds are tight on a level set: boxes away from the surface do 
     CHECK(d.max.x < 1.5);
 }
 
-TEST_CASE("tiles count: the domain covers tiles that differ from the background, bounds see their values") {
+TEST_CASE("tiles count: the domain covers active tiles that differ from the background, bounds see every tile's value") {
     initializeOpenVdb();
     auto g = openvdb::FloatGrid::create(1.0f);
     g->setTransform(openvdb::math::Transform::createLinearTransform(0.5));
@@ -165,16 +165,50 @@ TEST_CASE("tiles count: the domain covers tiles that differ from the background,
     const Box3 d = f.domain();
     CHECK(d.min.x == Approx(-257 * 0.5));
     CHECK(d.max.x == Approx(16 * 0.5));
-    CHECK(d.max.z == Approx(520 * 0.5));
+    CHECK(d.max.z == Approx(128 * 0.5)); // the active 128^3 tile's; not the inactive tile's 520
     CHECK(f.bounds(Box3{{5, 5, 5}, {6, 6, 6}}).hi == Approx(-2.0));
     CHECK(f.bounds(Box3{{-100, 10, 10}, {-90, 20, 20}}).lo == Approx(-3.0));
-    CHECK(f.bounds(Box3{{1, 1, 257}, {2, 2, 258}}).hi == Approx(5.0));
+    CHECK(f.bounds(Box3{{1, 1, 257}, {2, 2, 258}}).hi == Approx(5.0)); // outside the domain, still a value
     CHECK(f.valueRange().lo == Approx(-3.0));
     CHECK(f.valueRange().hi == Approx(5.0));
     auto nanTile = openvdb::FloatGrid::create(0.f);
     nanTile->tree().fill(openvdb::CoordBBox::createCube({16, 0, 0}, 8), std::numeric_limits<float>::quiet_NaN(), true);
     nanTile->tree().setValue({0, 0, 0}, 1.0f);
     CHECK_THROWS_WITH(GridField(nanTile, "t.vdb:d"), Catch::Contains("t.vdb:d") && Catch::Contains("tile at (16, 0, 0)"));
+    // Inactive values alone are no data (bounds see them all the same).
+    auto inactive = openvdb::FloatGrid::create(1.0f);
+    inactive->tree().setValueOff({40, 0, 0}, -1.0f);
+    inactive->tree().fill(openvdb::CoordBBox::createCube({0, 0, 512}, 8), 5.0f, false);
+    CHECK_THROWS_WITH(GridField(inactive, "t.vdb:off"), Catch::Contains("t.vdb:off") && Catch::Contains("is empty"));
+    inactive->tree().setValueOn({-16, 0, 0}, 0.5f);
+    GridField withOne(inactive, "one");
+    CHECK(withOne.domain().max.x == Approx(-15.0));
+    CHECK(withOne.bounds(Box3{{39.5, -0.5, -0.5}, {40.5, 0.5, 0.5}}).lo == Approx(-1.0));
+    CHECK(withOne.bounds(Box3{{1, 1, 513}, {2, 2, 514}}).hi == Approx(5.0));
+}
+
+TEST_CASE("an open level set (a terrain clipped by its box) has the domain of its band, not of its flood fill") {
+    // The signed flood fill of a band that reaches the sides of its box fills the space under
+    // it with inside tiles, far beyond the band. The domain is the band's active voxels (a level
+    // set's band holds its surface): before, it spanned the fill's tiles, thousands of voxels.
+    const double h = 0.02;
+    auto sheet = [](const Vec3d& p) { return p.z - 0.2 * std::sin(2 * p.x) * std::cos(3 * p.y); };
+    const GridBasePtr g = test::makeLevelSetFromDistance(sheet, Box3{{-1, -1, -0.5}, {1, 1, 0.5}}, h);
+    const auto grid = openvdb::gridPtrCast<openvdb::FloatGrid>(g);
+    openvdb::CoordBBox active = grid->evalActiveVoxelBoundingBox();
+    REQUIRE(grid->tree().activeTileCount() == 0);
+    std::size_t insideTiles = 0;
+    for (auto it = grid->tree().cbeginValueOff(); it; ++it)
+        if (!it.isVoxelValue() && *it < 0) ++insideTiles;
+    REQUIRE(insideTiles > 0); // the fill's tiles are there
+    GridField f(g, "terrain");
+    const Box3 d = f.domain();
+    for (int a = 0; a < 3; ++a) {
+        CHECK(d.min[a] == Approx(active.min()[a] * h));
+        CHECK(d.max[a] == Approx(active.max()[a] * h));
+    }
+    CHECK(d.min.z > -0.3);
+    CHECK(d.max.z < 0.3);
 }
 
 TEST_CASE("grid class decides inside and the default iso") {

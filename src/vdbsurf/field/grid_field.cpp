@@ -425,14 +425,14 @@ private:
     }
 
     // Min/max summaries of every leaf and internal node (for bounds()), the whole grid's range,
-    // and the box of the tiles that differ from the background (for the domain); refuses
+    // and the boxes of the tiles that differ from the background, all and active ones; refuses
     // non-finite values. The lower internal nodes are summarised in parallel, one task each; the
     // first bad value in tree order is reported, as a serial walk would.
     void computeSummaries(const std::string& label) {
         struct Node1Summary {
             MinMax mm;
             std::vector<std::pair<const LeafT*, MinMax>> leaves;
-            CoordBBox tiles; // tiles that differ from the background
+            CoordBBox tiles, activeTiles; // tiles that differ from the background: all, active ones
             bool badLeaf = false, badTile = false;
             Coord badLeafAt, badTileAt;
             double badLeafValue = 0, badTileValue = 0;
@@ -465,8 +465,9 @@ private:
                     if (!std::isfinite(v) && !sm.badTile) sm.badTile = true, sm.badTileAt = n1.offsetToGlobalCoord(i1), sm.badTileValue = v;
                     sm.mm.add(v);
                     if (v != bg) {
-                        const Coord o = n1.offsetToGlobalCoord(i1);
-                        sm.tiles.expand(CoordBBox::createCube(o, int(LeafT::DIM)));
+                        const CoordBBox cube = CoordBBox::createCube(n1.offsetToGlobalCoord(i1), int(LeafT::DIM));
+                        sm.tiles.expand(cube);
+                        if (n1.isValueMaskOn(i1)) sm.activeTiles.expand(cube);
                     }
                 }
             }
@@ -478,9 +479,11 @@ private:
             if (sm.badLeaf) refuse(sm.badLeafValue, sm.badLeafAt, " at voxel ");
         if (!std::isfinite(bg)) throw Error(label, "has a NaN or infinite background value");
         mAll.add(bg);
-        auto tile = [&](double v, const Coord& at, int dim) {
+        auto tile = [&](double v, const Coord& at, int dim, bool active) {
             if (!std::isfinite(v)) refuse(v, at, " in the tile at ");
-            if (v != bg) mTiles.expand(CoordBBox::createCube(at, dim));
+            if (v == bg) return;
+            mTiles.expand(CoordBBox::createCube(at, dim));
+            if (active) mActiveTiles.expand(CoordBBox::createCube(at, dim));
         };
         std::size_t k = 0;
         for (auto it2 = root.cbeginChildOn(); it2; ++it2) {
@@ -494,10 +497,11 @@ private:
                     mCache.emplace(lower[k], sm.mm);
                     mm2.add(sm.mm);
                     mTiles.expand(sm.tiles);
+                    mActiveTiles.expand(sm.activeTiles);
                     ++k;
                 } else {
                     const double v = double(n2.getTable()[i2].getValue());
-                    tile(v, n2.offsetToGlobalCoord(i2), int(Node1T::DIM));
+                    tile(v, n2.offsetToGlobalCoord(i2), int(Node1T::DIM), n2.isValueMaskOn(i2));
                     mm2.add(v);
                 }
             }
@@ -505,27 +509,39 @@ private:
             mAll.add(mm2);
         }
         for (auto it = root.cbeginValueAll(); it; ++it) {
-            tile(double(*it), it.getCoord(), int(Node2T::DIM));
+            tile(double(*it), it.getCoord(), int(Node2T::DIM), it.isValueOn());
             mAll.add(double(*it));
         }
     }
 
+    // Where values other than the background are stored (for bounds()), and where the grid's
+    // data is (the domain): its active voxels and active tiles. Inactive values are the fill
+    // between them: a level set's signed flood fill writes them, and where its band is open (a
+    // terrain or an ocean surface, a band clipped by a box) the fill's inside voxels and tiles
+    // run on beyond it, for thousands of voxels in tiles. Their faces against the background
+    // are no surface the grid holds (volumeToMesh meshes none of them either), and a domain
+    // stretched over them made the lattice too large to mesh at all. The trilinear support
+    // reaches one voxel beyond the data, where a fog's density may still be above the iso value
+    // at its last voxel; a level set's narrow band holds its surface, and in that voxel a band
+    // that ends open has the fill's values, which put a skirt along its edge.
     void computeDomain(const std::string& label) {
-        CoordBBox ib;
-        mTree.evalLeafBoundingBox(ib);
-        ib.expand(mTiles);
-        if (ib.empty() || (mGrid->activeVoxelCount() == 0 && mAll.lo == mAll.hi))
+        CoordBBox data = mActiveTiles;
+        for (auto leaf = mTree.cbeginLeaf(); leaf; ++leaf) leaf->evalActiveBoundingBox(data, /*visitVoxels=*/true);
+        if (data.empty() || (mGrid->activeVoxelCount() == 0 && mAll.lo == mAll.hi))
             throw Error(label, "is empty (no active voxels or tiles)");
-        ib.expand(1); // the trilinear support reaches one voxel beyond the stored data
-        mIndexDomain = ib;
-        const openvdb::BBoxd wb = mGrid->transform().indexToWorld(CoordBBox(ib.min(), ib.max()));
+        CoordBBox values = mTiles;
+        for (auto leaf = mTree.cbeginLeaf(); leaf; ++leaf) values.expand(leaf->getNodeBoundingBox());
+        values.expand(1);
+        mIndexValues = values;
+        if (mGrid->getGridClass() != openvdb::GRID_LEVEL_SET) data.expand(1);
+        const openvdb::BBoxd wb = mGrid->transform().indexToWorld(CoordBBox(data.min(), data.max()));
         mDomain = {toVec(wb.min()), toVec(wb.max())};
     }
 
     // Min/max of every value in the index box, from cached node summaries where a node lies
     // wholly inside the box.
     void query(const CoordBBox& box, MinMax& mm) const {
-        if (!box.hasOverlap(mIndexDomain)) { mm.add(double(mTree.background())); return; }
+        if (!box.hasOverlap(mIndexValues)) { mm.add(double(mTree.background())); return; }
         const RootT& root = mTree.root();
         constexpr int D = int(Node2T::DIM);
         const Coord lo = box.min() & ~(D - 1), hi = box.max() & ~(D - 1);
@@ -578,8 +594,8 @@ private:
     Vec3d mOrigin;
     MinMax mAll;
     std::unordered_map<const void*, MinMax> mCache;
-    CoordBBox mTiles; // index box of the tiles that differ from the background
-    CoordBBox mIndexDomain;
+    CoordBBox mTiles, mActiveTiles; // index boxes of the tiles that differ from the background: all, active ones
+    CoordBBox mIndexValues; // index box of the values that differ from the background, one voxel out
     Box3 mDomain;
 };
 
