@@ -522,8 +522,9 @@ private:
     // are no surface the grid holds (volumeToMesh meshes none of them either), and a domain
     // stretched over them made the lattice too large to mesh at all. The trilinear support
     // reaches one voxel beyond the data, where a fog's density may still be above the iso value
-    // at its last voxel; a level set's narrow band holds its surface, and in that voxel a band
-    // that ends open has the fill's values, which put a skirt along its edge.
+    // at its last voxel (so every grid but a level set keeps that voxel); a level set's narrow
+    // band holds its surface, and in that voxel a band that ends open has the fill's values,
+    // which put a skirt along its edge (up to 22 voxels off a terrain's sheet).
     void computeDomain(const std::string& label) {
         CoordBBox data = mActiveTiles;
         for (auto leaf = mTree.cbeginLeaf(); leaf; ++leaf) leaf->evalActiveBoundingBox(data, /*visitVoxels=*/true);
