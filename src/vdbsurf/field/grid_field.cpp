@@ -526,12 +526,13 @@ private:
     // band holds its surface, and in that voxel a band that ends open has the fill's values,
     // which put a skirt along its edge (up to 22 voxels off a terrain's sheet).
     void computeDomain(const std::string& label) {
-        CoordBBox data = mActiveTiles;
-        for (auto leaf = mTree.cbeginLeaf(); leaf; ++leaf) leaf->evalActiveBoundingBox(data, /*visitVoxels=*/true);
+        CoordBBox data = mActiveTiles, values = mTiles;
+        for (auto leaf = mTree.cbeginLeaf(); leaf; ++leaf) {
+            leaf->evalActiveBoundingBox(data, /*visitVoxels=*/true);
+            values.expand(leaf->getNodeBoundingBox());
+        }
         if (data.empty() || (mGrid->activeVoxelCount() == 0 && mAll.lo == mAll.hi))
             throw Error(label, "is empty (no active voxels or tiles)");
-        CoordBBox values = mTiles;
-        for (auto leaf = mTree.cbeginLeaf(); leaf; ++leaf) values.expand(leaf->getNodeBoundingBox());
         values.expand(1);
         mIndexValues = values;
         if (mGrid->getGridClass() != openvdb::GRID_LEVEL_SET) data.expand(1);
