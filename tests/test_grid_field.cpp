@@ -211,6 +211,101 @@ TEST_CASE("an open level set (a terrain clipped by its box) has the domain of it
     CHECK(d.max.z < 0.3);
 }
 
+TEST_CASE("cells and points without data read only inactive voxels, by the trilinear weights") {
+    // Scattered active voxels, inactive values of either sign between them, an active tile. A
+    // cell has data when some point of it reads an active voxel (or tile) with a non-zero
+    // trilinear weight; checked against a 5^3 sampling of each cell, which meets every voxel
+    // interval the cell spans, on lattices at, finer than and coarser than the voxels.
+    initializeOpenVdb();
+    auto g = openvdb::FloatGrid::create(1.0f);
+    g->setGridClass(openvdb::GRID_LEVEL_SET);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(0.5));
+    std::mt19937 rng(7);
+    std::uniform_int_distribution<int> at(-6, 6);
+    std::uniform_real_distribution<float> u(-1.f, 1.f);
+    {
+        auto acc = g->getAccessor();
+        for (int i = 0; i < 300; ++i) acc.setValueOff({at(rng), at(rng), at(rng)}, u(rng));
+        for (int i = 0; i < 40; ++i) acc.setValueOn({at(rng), at(rng), at(rng)}, u(rng));
+    }
+    g->tree().addTile(1, openvdb::Coord(8, 0, 0), -1.f, true); // voxels 8..15 x 0..7 x 0..7
+    GridField f(g, "scattered");
+    auto reads = [&](openvdb::FloatGrid::ConstAccessor& acc, openvdb::Vec3d ip) {
+        // Voxels with a non-zero weight at index position ip: floor, and floor + 1 where the
+        // fraction is not zero (a position within 1e-9 of a voxel plane is on it: the rounding
+        // of the lattice's arithmetic, as in bounds()).
+        for (int a = 0; a < 3; ++a)
+            if (std::fabs(ip[a] - std::nearbyint(ip[a])) < 1e-9) ip[a] = std::nearbyint(ip[a]);
+        const openvdb::Coord b(int(std::floor(ip.x())), int(std::floor(ip.y())), int(std::floor(ip.z())));
+        for (int d = 0; d < 8; ++d) {
+            const openvdb::Vec3i o(d & 1, (d >> 1) & 1, (d >> 2) & 1);
+            bool weighs = true;
+            for (int a = 0; a < 3; ++a) weighs = weighs && (o[a] == 0 || ip[a] - b[a] > 0);
+            if (weighs && acc.isValueOn(b.offsetBy(o.x(), o.y(), o.z()))) return true;
+        }
+        return false;
+    };
+    auto acc = g->getConstAccessor();
+    std::size_t kept = 0, dropped = 0;
+    for (const LatticeFrame frame : {LatticeFrame{{0, 0, 0}, 0.5}, LatticeFrame{{0.05, -0.1, 0.13}, 0.35},
+                                     LatticeFrame{{-0.2, 0.3, 0.01}, 1.3}}) {
+        INFO("spacing " << frame.h);
+        const int lo = int(std::floor(-4.0 / frame.h)) & ~7, hi = int(std::ceil(8.0 / frame.h));
+        for (int bx = lo; bx <= hi; bx += 8)
+            for (int by = lo; by <= hi; by += 8)
+                for (int bz = lo; bz <= hi; bz += 8) {
+                    std::uint64_t words[8];
+                    std::fill(words, words + 8, ~std::uint64_t(0));
+                    f.dropCellsWithoutData(frame, {bx, by, bz}, words);
+                    for (int c = 0; c < 512; ++c) {
+                        const Vec3i cell(bx + (c >> 6), by + ((c >> 3) & 7), bz + (c & 7));
+                        const Box3 box = frame.cellBox(cell);
+                        bool data = false;
+                        for (int s = 0; s < 125 && !data; ++s) {
+                            const Vec3d t(s % 5 / 4.0, s / 5 % 5 / 4.0, s / 25 / 4.0);
+                            const Vec3d e = box.max - box.min;
+                            const Vec3d p = box.min + Vec3d(e.x * t.x, e.y * t.y, e.z * t.z);
+                            data = reads(acc, g->worldToIndex(openvdb::Vec3d(p.x, p.y, p.z)));
+                        }
+                        const bool keptCell = (words[c >> 6] >> (c & 63)) & 1;
+                        INFO("cell " << cell.x << " " << cell.y << " " << cell.z);
+                        REQUIRE(keptCell == data);
+                        ++(keptCell ? kept : dropped);
+                    }
+                    // Cells not asked about stay dropped.
+                    std::fill(words, words + 8, std::uint64_t(0));
+                    f.dropCellsWithoutData(frame, {bx, by, bz}, words);
+                    REQUIRE(std::all_of(words, words + 8, [](std::uint64_t w) { return w == 0; }));
+                }
+    }
+    CHECK(kept > 5000);
+    CHECK(dropped > 5000);
+
+    // Points: anywhere, on voxel lines (two whole coordinates) and at voxel centres.
+    std::uniform_real_distribution<double> w(-4.0, 8.0);
+    std::vector<Vec3f> points;
+    for (int i = 0; i < 30000; ++i) {
+        Vec3d p(w(rng), w(rng), w(rng));
+        const int whole = i % 4; // 0: none, 1: one axis, 2: two axes, 3: all three on voxel planes
+        for (int a = 0; a < whole; ++a) {
+            const std::size_t axis = std::size_t((i / 4 + a) % 3);
+            p[axis] = 0.5 * std::round(p[axis] / 0.5);
+        }
+        points.push_back(Vec3f(p));
+    }
+    std::vector<std::uint8_t> has(points.size(), 7);
+    f.pointsWithData(points.data(), points.size(), has.data());
+    std::size_t with = 0;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+        const Vec3d p(points[i]);
+        INFO("point " << p.x << " " << p.y << " " << p.z);
+        REQUIRE(has[i] == std::uint8_t(reads(acc, g->worldToIndex(openvdb::Vec3d(p.x, p.y, p.z)))));
+        with += has[i];
+    }
+    CHECK(with > 1000);
+    CHECK(with < points.size() - 1000);
+}
+
 TEST_CASE("grid class decides inside and the default iso") {
     auto ls = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.1);
     GridField a(ls, "ls");

@@ -121,6 +121,9 @@ void runMesh(const MeshOptions& o) {
     Mesh mesh = meshField(*field, req, rep);
     note("iso " + num(rep.iso) + " (" + rep.isoReason + "), lattice spacing " + num(rep.voxelSize) + " (" + rep.voxelSizeReason +
          ")");
+    if (rep.polygonsWithoutData > 0)
+        note("left out " + std::to_string(rep.polygonsWithoutData) + " polygons on inactive voxels alone (the grid's fill, whose " +
+             "inside meets its outside where a band ends open; " + std::to_string(rep.cellsWithoutData) + " cells read nothing else)");
     if (dmc)
         note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts, " + std::to_string(rep.thinNodesCentred) +
              " centred in them, " + std::to_string(rep.nodesOnCorners) + " onto corners, " + std::to_string(rep.nodesOnEdges) +
@@ -173,7 +176,9 @@ void runMesh(const MeshOptions& o) {
                            {"leaf_blocks_visited", rep.leafBlocksVisited},
                            {"cells_visited", rep.cellsExamined},
                            {"cells_active", rep.cellsActive},
-                           {"cells_with_surface", rep.cellsWithSurface}}},
+                           {"cells_with_surface", rep.cellsWithSurface},
+                           {"cells_without_data", rep.cellsWithoutData},
+                           {"polygons_without_data", rep.polygonsWithoutData}}},
                          {"dmc",
                           {{"thin_search", !o.noThin && dmc},
                            {"sharp_features", !o.noSharp && dmc},

@@ -16,6 +16,21 @@
 
 namespace vdbsurf {
 
+namespace {
+
+// The mesh without the polygons that touch a vertex without data (Field::pointsWithData): those
+// on the fill's own surface, and where it meets the data, the polygons that would hang from it.
+Mesh withoutPolygonsOffData(const Mesh& mesh, const Field& field) {
+    std::vector<std::uint8_t> hasData(mesh.points.size());
+    field.pointsWithData(mesh.points.data(), mesh.points.size(), hasData.data());
+    std::vector<std::uint8_t> keep(mesh.polygonCount(), 1);
+    for (std::size_t p = 0; p < mesh.polygonCount(); ++p)
+        for (std::uint32_t i = mesh.offsets[p]; i < mesh.offsets[p + 1]; ++i) keep[p] &= hasData[mesh.indices[i]];
+    return keepPolygons(mesh, keep);
+}
+
+} // namespace
+
 const char* methodName(MeshMethod m) {
     switch (m) {
     case MeshMethod::MarchingCubes: return "mc";
@@ -165,6 +180,12 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.collapsedPolygons = surface->stats().collapsedPolygons;
     report.splitVertices = surface->stats().splitVertices;
     report.secondsMesh = surface->stats().seconds;
+    report.cellsWithoutData = lattice.stats.cellsWithoutData;
+    if (report.cellsWithoutData > 0) {
+        const std::size_t before = mesh.polygonCount();
+        mesh = withoutPolygonsOffData(mesh, field);
+        report.polygonsWithoutData = before - mesh.polygonCount();
+    }
 
     if (mesh.empty() && !request.allowEmpty) {
         throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " on a lattice of spacing " +

@@ -93,6 +93,21 @@ public:
     // (a grid meshed at its own voxel size), so the lattice need not ask bounds() per cell.
     virtual bool cellBoundsAreCornerRange(const LatticeFrame& frame) const { return false; }
 
+    // Clears, in the 8^3 block of cells from `first` (8 words of 64 bits, bit z + 8 y of word x: an
+    // OpenVDB leaf mask's layout), the cells whose every value comes from what the field's source
+    // marks as no data. A grid's inactive voxels are the fill between its data: where a level
+    // set's band ends open (a terrain, a band clipped by a box), the flood fill's inside and outside
+    // meet with no surface of the grid there. The default keeps every cell.
+    virtual void dropCellsWithoutData(const LatticeFrame& frame, const Vec3i& first, std::uint64_t* cells) const {
+        (void)frame, (void)first, (void)cells;
+    }
+    // out[i] = 1 when value(points[i]) reads data, 0 when it reads only what the source marks as
+    // none (as above). The default: every point has data.
+    virtual void pointsWithData(const Vec3f* points, std::size_t n, std::uint8_t* out) const {
+        (void)points;
+        std::fill(out, out + n, std::uint8_t(1));
+    }
+
     // True when a bounds() call over a small box costs less than a few value() calls (a long
     // formula), so searches may first rule out sub-boxes by their bounds. Only speed depends on it.
     virtual bool boundsCheaperThanSamples() const { return false; }

@@ -61,6 +61,8 @@ struct GridField::Impl {
                              const std::uint8_t* needed, double* out) const = 0;
     virtual bool directStride(const LatticeFrame& frame, int& stride, Coord& offset) const = 0;
     virtual bool cellsInsideVoxelCells(const LatticeFrame& frame) const = 0;
+    virtual void dropCellsWithoutData(const LatticeFrame& frame, const Vec3i& first, std::uint64_t* cells) const = 0;
+    virtual void pointsWithData(const Vec3f* points, std::size_t n, std::uint8_t* out) const = 0;
     virtual bool piecewiseLinearCrossing(const Vec3d& a, const Vec3d& b, double iso, Inside side, double& t) const = 0;
     virtual GridBaseCPtr grid() const = 0;
 };
@@ -300,6 +302,53 @@ public:
         return true;
     }
 
+    // A cell's values are trilinear samples of the voxels in its support; when none of them is
+    // active or in an active tile, they are all the fill's, and the cell holds no data.
+    void dropCellsWithoutData(const LatticeFrame& frame, const Vec3i& first, std::uint64_t* cells) const override {
+        if (std::all_of(cells, cells + 8, [](std::uint64_t w) { return w == 0; })) return;
+        Acc acc(mTree);
+        int stride = 0;
+        Coord offset;
+        if (directStride(frame, stride, offset) && stride == 1) {
+            // Nodes on voxel centres: a cell reads its 8 corner voxels alone. Their active bits,
+            // gathered as 9 x 9 columns along z from the leaves' masks, give all 512 cells at once.
+            const Coord base(offset.x() + first.x, offset.y() + first.y, offset.z() + first.z);
+            std::array<std::uint16_t, 81> column{};
+            activeColumns(acc, base, column);
+            for (int x = 0; x < 8; ++x)
+                for (int y = 0; y < 8; ++y) {
+                    const unsigned c = column[std::size_t(x * 9 + y)] | column[std::size_t(x * 9 + y + 1)] |
+                                       column[std::size_t(x * 9 + 9 + y)] | column[std::size_t(x * 9 + 9 + y + 1)];
+                    const std::uint64_t has = (c | (c >> 1)) & 0xFFu;
+                    cells[x] &= ~((~has & 0xFFu) << (8 * y));
+                }
+            return;
+        }
+        for (int x = 0; x < 8; ++x) {
+            std::uint64_t word = cells[x];
+            for (std::uint64_t bits = word; bits; bits &= bits - 1) {
+                const int b = __builtin_ctzll(bits);
+                const Interval3 ib = indexBox(frame.cellBox(first + Vec3i(x, b >> 3, b & 7)));
+                if (ib.finite() && !anyActive(acc, CoordBBox(lowerSupport(ib.lo), upperSupport(ib.hi))))
+                    word &= ~(std::uint64_t(1) << b);
+            }
+            cells[x] = word;
+        }
+    }
+
+    // A point on a lattice edge through voxel centres reads the edge's two voxels alone (the
+    // others weigh zero), so a crossing between two inactive voxels has no data, as volumeToMesh
+    // has no edge there.
+    void pointsWithData(const Vec3f* points, std::size_t n, std::uint8_t* out) const override {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+            Acc acc(mTree);
+            for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                const openvdb::Vec3d ip = worldToIndex(Vec3d(points[i]));
+                out[i] = std::uint8_t(anyActive(acc, CoordBBox(lowerSupport(ip), upperSupport(ip))));
+            }
+        });
+    }
+
     void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
                      double* out) const override {
         int stride = 0;
@@ -422,6 +471,103 @@ private:
                                 for (int x = x0; x < x1; ++x) at(x, y, z) = v;
                     }
                 }
+    }
+
+    // Bit z of column[x * 9 + y]: is voxel base + (x, y, z) active (or in an active tile), for
+    // x, y, z in 0 .. 8. A leaf's mask holds, in word x, byte y, its eight voxels along z.
+    void activeColumns(Acc& acc, const Coord& base, std::array<std::uint16_t, 81>& column) const {
+        const Coord end = base.offsetBy(9);
+        for (int lx = base.x() & ~7; lx < end.x(); lx += 8)
+            for (int ly = base.y() & ~7; ly < end.y(); ly += 8)
+                for (int lz = base.z() & ~7; lz < end.z(); lz += 8) {
+                    const int x0 = std::max(lx, base.x()), x1 = std::min(lx + 8, end.x());
+                    const int y0 = std::max(ly, base.y()), y1 = std::min(ly + 8, end.y());
+                    const int z0 = std::max(lz, base.z()), z1 = std::min(lz + 8, end.z());
+                    // Bits z0 .. z1 - 1 of the leaf, moved to column positions z - base.z.
+                    const unsigned zBits = (0xFFu << (z0 - lz)) & (0xFFu >> (8 - (z1 - lz)));
+                    const int shift = lz - base.z();
+                    auto put = [&](int x, int y, unsigned bits) {
+                        column[std::size_t((x - base.x()) * 9 + (y - base.y()))] |=
+                            std::uint16_t(shift >= 0 ? bits << shift : bits >> -shift);
+                    };
+                    if (const LeafT* leaf = acc.probeConstLeaf(Coord(lx, ly, lz))) {
+                        const auto& mask = leaf->getValueMask();
+                        for (int x = x0; x < x1; ++x) {
+                            const std::uint64_t word = mask.template getWord<std::uint64_t>(openvdb::Index(x & 7));
+                            for (int y = y0; y < y1; ++y) put(x, y, unsigned(word >> (8 * (y & 7))) & zBits);
+                        }
+                    } else if (acc.isValueOn(Coord(lx, ly, lz))) {
+                        for (int x = x0; x < x1; ++x)
+                            for (int y = y0; y < y1; ++y) put(x, y, zBits);
+                    }
+                }
+    }
+
+    // Is any voxel of the box active, or in an active tile? A box of a few leaves (a cell's support
+    // on a lattice near the voxel size) goes through the caller's accessor, which keeps the last
+    // leaf; a larger one walks the tree from the root, skipping tiles whole.
+    bool anyActive(Acc& acc, const CoordBBox& box) const {
+        const Coord lo = box.min() & ~7, hi = box.max() & ~7;
+        if (hi.x() - lo.x() > 24 || hi.y() - lo.y() > 24 || hi.z() - lo.z() > 24) return anyActiveFromRoot(box);
+        for (int x = lo.x(); x <= hi.x(); x += 8)
+            for (int y = lo.y(); y <= hi.y(); y += 8)
+                for (int z = lo.z(); z <= hi.z(); z += 8) {
+                    const Coord c(x, y, z);
+                    if (const LeafT* leaf = acc.probeConstLeaf(c)) {
+                        if (anyActiveInLeaf(*leaf, box)) return true;
+                    } else if (acc.isValueOn(c)) {
+                        return true;
+                    }
+                }
+        return false;
+    }
+
+    bool anyActiveFromRoot(const CoordBBox& box) const {
+        const RootT& root = mTree.root();
+        for (auto it = root.cbeginValueOn(); it; ++it)
+            if (CoordBBox::createCube(it.getCoord(), int(Node2T::DIM)).hasOverlap(box)) return true;
+        for (auto it = root.cbeginChildOn(); it; ++it)
+            if (it->getNodeBoundingBox().hasOverlap(box) && anyActiveInNode(*it, box)) return true;
+        return false;
+    }
+
+    template <typename NodeT>
+    bool anyActiveInNode(const NodeT& node, const CoordBBox& box) const {
+        return anySlot(node, box, [&](openvdb::Index n) {
+            if (!node.isChildMaskOn(n)) return node.isValueMaskOn(n);
+            const auto& child = *node.getTable()[n].getChild();
+            if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) return anyActiveInLeaf(child, box);
+            else return anyActiveInNode(child, box);
+        });
+    }
+
+    // Calls fn with each table slot of the node that meets the box, until fn returns true.
+    template <typename NodeT, typename Fn>
+    static bool anySlot(const NodeT& node, const CoordBBox& box, Fn&& fn) {
+        CoordBBox in = node.getNodeBoundingBox();
+        in.intersect(box);
+        constexpr int CD = int(NodeT::ChildNodeType::DIM);
+        const Coord lo = in.min() & ~(CD - 1), hi = in.max() & ~(CD - 1);
+        for (int x = lo.x(); x <= hi.x(); x += CD)
+            for (int y = lo.y(); y <= hi.y(); y += CD)
+                for (int z = lo.z(); z <= hi.z(); z += CD)
+                    if (fn(NodeT::coordToOffset(Coord(x, y, z)))) return true;
+        return false;
+    }
+
+    // A leaf's value mask holds, in word x, byte y, the eight voxels along z.
+    static bool anyActiveInLeaf(const LeafT& leaf, const CoordBBox& box) {
+        CoordBBox in = leaf.getNodeBoundingBox();
+        in.intersect(box);
+        if (in.empty()) return false;
+        const std::uint64_t zBits = (0xFFu << (in.min().z() & 7)) & (0xFFu >> (7 - (in.max().z() & 7)));
+        const auto& mask = leaf.getValueMask();
+        for (int x = in.min().x(); x <= in.max().x(); ++x) {
+            const std::uint64_t word = mask.template getWord<std::uint64_t>(openvdb::Index(x & 7));
+            for (int y = in.min().y(); y <= in.max().y(); ++y)
+                if ((word >> (8 * (y & 7))) & zBits) return true;
+        }
+        return false;
     }
 
     // Min/max summaries of every leaf and internal node (for bounds()), the whole grid's range,
@@ -562,20 +708,12 @@ private:
     void queryInternal(const NodeT& node, const CoordBBox& box, MinMax& mm) const {
         const CoordBBox nb = node.getNodeBoundingBox();
         if (contains(box, nb)) { mm.add(mCache.at(&node)); return; }
-        CoordBBox in = nb;
-        in.intersect(box);
-        using ChildT = typename NodeT::ChildNodeType;
-        constexpr int CD = int(ChildT::DIM);
-        const Coord lo = in.min() & ~(CD - 1), hi = in.max() & ~(CD - 1);
-        for (int x = lo.x(); x <= hi.x(); x += CD)
-            for (int y = lo.y(); y <= hi.y(); y += CD)
-                for (int z = lo.z(); z <= hi.z(); z += CD) {
-                    const openvdb::Index n = NodeT::coordToOffset(Coord(x, y, z));
-                    if (!node.isChildMaskOn(n)) { mm.add(double(node.getTable()[n].getValue())); continue; }
-                    const ChildT& child = *node.getTable()[n].getChild();
-                    if constexpr (std::is_same<ChildT, LeafT>::value) queryLeaf(child, box, mm);
-                    else queryInternal(child, box, mm);
-                }
+        anySlot(node, box, [&](openvdb::Index n) {
+            if (!node.isChildMaskOn(n)) mm.add(double(node.getTable()[n].getValue()));
+            else if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) queryLeaf(*node.getTable()[n].getChild(), box, mm);
+            else queryInternal(*node.getTable()[n].getChild(), box, mm);
+            return false;
+        });
     }
 
     void queryLeaf(const LeafT& leaf, const CoordBBox& box, MinMax& mm) const {
@@ -657,6 +795,14 @@ void GridField::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const
 }
 
 bool GridField::cellBoundsAreCornerRange(const LatticeFrame& frame) const { return mImpl->cellsInsideVoxelCells(frame); }
+
+void GridField::dropCellsWithoutData(const LatticeFrame& frame, const Vec3i& first, std::uint64_t* cells) const {
+    mImpl->dropCellsWithoutData(frame, first, cells);
+}
+
+void GridField::pointsWithData(const Vec3f* points, std::size_t n, std::uint8_t* out) const {
+    mImpl->pointsWithData(points, n, out);
+}
 
 bool GridField::edgesAreLinear(const LatticeFrame& frame) const {
     int stride = 0;

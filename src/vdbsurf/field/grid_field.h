@@ -31,6 +31,8 @@ public:
     void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
                      double* out) const override;
     bool cellBoundsAreCornerRange(const LatticeFrame& frame) const override;
+    void dropCellsWithoutData(const LatticeFrame& frame, const Vec3i& first, std::uint64_t* cells) const override;
+    void pointsWithData(const Vec3f* points, std::size_t n, std::uint8_t* out) const override;
     bool edgesAreLinear(const LatticeFrame& frame) const override;
     double edgeCrossing(const Vec3d& a, const Vec3d& b, double va, double vb, double iso) const override;
 

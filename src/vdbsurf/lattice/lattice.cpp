@@ -130,6 +130,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     lat.frame = frame;
     lat.cellRange = cellRange;
     lat.cells = std::make_shared<openvdb::MaskTree>(false);
+    lat.cellsWithoutData = std::make_shared<openvdb::MaskTree>(false);
     LatticeStats& st = lat.stats;
 
     // Top-down over VDB node sizes: 4096^3, 128^3, then 8^3 leaf blocks. The root has no bounds
@@ -150,7 +151,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     // Where a cell's bounds are its corners' range (or bounds are not wanted) the corner values decide.
     const bool cornersExact = test == CellTest::CornerSigns || field.cellBoundsAreCornerRange(frame);
     const Inside side = field.inside();
-    std::vector<std::unique_ptr<MaskLeaf>> leaves(blocks.size());
+    std::vector<std::unique_ptr<MaskLeaf>> leaves(blocks.size()), withoutData(blocks.size());
     std::vector<std::int64_t> nanAt(blocks.size(), -1);
     std::vector<std::uint32_t> cellsExamined(blocks.size(), 0);
     Progress progress("lattice", blocks.size(), cancel);
@@ -199,7 +200,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             // corners are inside; it also touches the surface when it has no inside corner and
             // a corner exactly at iso.
             const unsigned zMask = (0xFFu >> (7 - hi.z())) & (0xFFu << lo.z());
-            MaskLeaf::NodeMaskType mask;
+            std::array<std::uint64_t, kLeafDim> words{};
             std::uint32_t examined = 0;
             for (int x = lo.x(); x <= hi.x(); ++x) {
                 std::uint64_t word = 0;
@@ -222,7 +223,19 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
                     word |= std::uint64_t(row) << (8 * y);
                     examined += std::uint32_t(__builtin_popcount(zMask));
                 }
-                mask.template getWord<std::uint64_t>(openvdb::Index(x)) = word;
+                words[std::size_t(x)] = word;
+            }
+            std::array<std::uint64_t, kLeafDim> withData = words;
+            field.dropCellsWithoutData(frame, toVec(o), withData.data());
+            MaskLeaf::NodeMaskType mask, noData;
+            for (int x = 0; x < kLeafDim; ++x) {
+                mask.template getWord<std::uint64_t>(openvdb::Index(x)) = words[std::size_t(x)];
+                noData.template getWord<std::uint64_t>(openvdb::Index(x)) = words[std::size_t(x)] & ~withData[std::size_t(x)];
+            }
+            if (!noData.isOff()) {
+                auto leaf = std::make_unique<MaskLeaf>(o, false);
+                leaf->setValueMask(noData);
+                withoutData[bi] = std::move(leaf);
             }
             cellsExamined[bi] = examined;
             if (!mask.isOff()) {
@@ -263,6 +276,10 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     }
     for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
         st.cellsExamined += cellsExamined[bi];
+        if (withoutData[bi]) {
+            st.cellsWithoutData += withoutData[bi]->onVoxelCount();
+            lat.cellsWithoutData->addLeaf(withoutData[bi].release());
+        }
         if (!leaves[bi]) continue;
         st.cellsActive += leaves[bi]->onVoxelCount();
         lat.cells->addLeaf(leaves[bi].release());

@@ -17,6 +17,26 @@ std::size_t Mesh::countPolygonsOfSize(std::uint32_t n) const {
     return count;
 }
 
+Mesh keepPolygons(const Mesh& mesh, const std::vector<std::uint8_t>& keep) {
+    constexpr std::uint32_t kUnused = ~std::uint32_t(0);
+    std::vector<std::uint32_t> newId(mesh.points.size(), kUnused);
+    for (std::size_t p = 0; p < mesh.polygonCount(); ++p)
+        if (keep[p])
+            for (std::uint32_t i = mesh.offsets[p]; i < mesh.offsets[p + 1]; ++i) newId[mesh.indices[i]] = 0;
+    Mesh out;
+    for (std::size_t v = 0; v < mesh.points.size(); ++v) {
+        if (newId[v] == kUnused) continue;
+        newId[v] = std::uint32_t(out.points.size());
+        out.points.push_back(mesh.points[v]);
+    }
+    for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
+        if (!keep[p]) continue;
+        for (std::uint32_t i = mesh.offsets[p]; i < mesh.offsets[p + 1]; ++i) out.indices.push_back(newId[mesh.indices[i]]);
+        out.offsets.push_back(std::uint32_t(out.indices.size()));
+    }
+    return out;
+}
+
 Box3 Mesh::bounds() const {
     const double inf = std::numeric_limits<double>::infinity();
     Box3 b{{inf, inf, inf}, {-inf, -inf, -inf}};

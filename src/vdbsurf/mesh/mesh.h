@@ -38,6 +38,9 @@ inline std::uint64_t undirectedEdgeKey(std::uint32_t a, std::uint32_t b) {
 double surfaceArea(const Mesh& mesh);
 double enclosedVolume(const Mesh& mesh);
 
+// The polygons whose keep[] entry is non-zero, and the vertices they use, both in their order.
+Mesh keepPolygons(const Mesh& mesh, const std::vector<std::uint8_t>& keep);
+
 // Triangles and quads only: n-gons (n > 4) fanned into triangles, as OpenVDB's tools expect.
 void splitToTrianglesAndQuads(const Mesh& mesh, std::vector<std::uint32_t>& triangles, std::vector<std::uint32_t>& quads);
 
