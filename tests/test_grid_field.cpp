@@ -85,6 +85,69 @@ TEST_CASE("grid bounds contain every sampled value, for aligned and rotated tran
     }
 }
 
+TEST_CASE("mayStraddle answers as straddles(bounds) does, aligned and rotated, small boxes and large") {
+    // It may rule a box out from the range of the voxels it reads before the exact range: the
+    // answer must be the same, whatever the iso value.
+    for (bool rotate : {false, true}) {
+        auto g = noiseGrid(20, 0.25, 5);
+        if (rotate) g->setTransform(rotatedTransform());
+        GridField f(g, "noise");
+        std::mt19937 rng(9);
+        std::uniform_real_distribution<double> c(-3.0, 3.0), s(0.0, 0.6), iso(-1.1, 1.1);
+        std::size_t yes = 0, no = 0;
+        for (int b = 0; b < 4000; ++b) {
+            Vec3d centre(c(rng), c(rng), c(rng));
+            const Vec3d half(s(rng), s(rng), s(rng));
+            // Half the boxes (unrotated) start on a voxel centre: their range can then end at the
+            // value of the first voxel they read.
+            if (!rotate && b % 2 == 0)
+                for (std::size_t a = 0; a < 3; ++a) centre[a] = 0.25 * std::round((centre[a] - half[a]) / 0.25) + half[a];
+            const Box3 box{centre - half, centre + half};
+            const Interval iv = f.bounds(box);
+            // Iso values at random, and just inside and just outside the exact range.
+            for (double v : {iso(rng), iv.lo, iv.hi, iv.lo - 1e-7, iv.hi + 1e-7}) {
+                INFO("rotated " << rotate << " iso " << v << " bounds [" << iv.lo << ", " << iv.hi << "]");
+                const bool answer = f.mayStraddle(box, v);
+                REQUIRE(answer == straddles(iv, v));
+                ++(answer ? yes : no);
+            }
+        }
+        CHECK(yes > 2000);
+        CHECK(no > 2000);
+    }
+}
+
+TEST_CASE("sampleNodes gives value() bit for bit on every kind of lattice frame") {
+    // On voxel centres (stride 1 and 2), between them (finer, coarser, offset), and rotated: each
+    // path (direct reads, a gathered block of voxels, one sample a node) agrees with value().
+    for (bool rotate : {false, true}) {
+        auto g = noiseGrid(24, 0.25, 6);
+        if (rotate) g->setTransform(rotatedTransform());
+        GridField f(g, "noise");
+        for (const LatticeFrame frame : {f.naturalFrame(0.25), f.naturalFrame(0.5), LatticeFrame{{0.03, -0.07, 0.11}, 0.0833},
+                                         LatticeFrame{{-0.2, 0.1, 0.05}, 0.37}, LatticeFrame{{0.0, 0.0, 0.0}, 2.3}}) {
+            for (const Vec3i dims : {Vec3i(9, 9, 9), Vec3i(3, 3, 3), Vec3i(5, 2, 7)}) {
+                const Vec3i first(-int(1.2 / frame.h), -int(0.9 / frame.h), -int(1.1 / frame.h));
+                const std::size_t count = std::size_t(dims.x * dims.y * dims.z);
+                std::vector<std::uint8_t> needed(count);
+                for (std::size_t n = 0; n < count; ++n) needed[n] = std::uint8_t(n % 3 != 1);
+                std::vector<double> all(count, -7.0), some(count, -7.0);
+                f.sampleNodes(frame, first, dims, nullptr, all.data());
+                f.sampleNodes(frame, first, dims, needed.data(), some.data());
+                std::size_t n = 0;
+                for (int k = 0; k < dims.z; ++k)
+                    for (int j = 0; j < dims.y; ++j)
+                        for (int i = 0; i < dims.x; ++i, ++n) {
+                            const double v = f.value(frame.nodeWorld(first + Vec3i(i, j, k)));
+                            INFO("rotated " << rotate << " spacing " << frame.h << " node " << i << " " << j << " " << k);
+                            REQUIRE(all[n] == v);
+                            if (needed[n]) REQUIRE(some[n] == v);
+                        }
+            }
+        }
+    }
+}
+
 TEST_CASE("valueAndGradient returns value() and gradient() bit for bit, aligned and rotated") {
     for (bool rotate : {false, true}) {
         auto g = noiseGrid(12, 0.25, 3);

@@ -26,7 +26,7 @@ std::vector<EdgeRuns::Run> EdgeRuns::runsAlong(const Vec3d& pa, const Vec3d& pb,
     if (insideA == insideB) {
         const Vec3d lo(std::min(pa.x, pb.x), std::min(pa.y, pb.y), std::min(pa.z, pb.z));
         const Vec3d hi(std::max(pa.x, pb.x), std::max(pa.y, pb.y), std::max(pa.z, pb.z));
-        if (!straddles(mField.bounds(Box3{lo, hi}), mIso)) {
+        if (!mField.mayStraddle(Box3{lo, hi}, mIso)) {
             runs.back().last = n;
             return runs;
         }

@@ -173,7 +173,7 @@ public:
                 if (represented) continue;
             }
             const Box3 octant = octantBox(centre, d);
-            if (!straddles(mField.bounds(octant), mIso)) continue;
+            if (!mField.mayStraddle(octant, mIso)) continue;
             const Vec3d& lo = octant.min;
             // The octant's eighths that may hold a value on the other side: samples elsewhere
             // cannot, so skipping them changes nothing found (and saves most evaluations of costly

@@ -66,6 +66,9 @@ public:
     }
     // Conservative: every value() at a point of the closed box lies in the result.
     virtual Interval bounds(const Box3& box) const = 0;
+    // straddles(bounds(box), iso), the same answer, which a field may give sooner (a grid: from
+    // the range of the voxels the box reads, before the interpolant's exact range).
+    virtual bool mayStraddle(const Box3& box, double iso) const { return straddles(bounds(box), iso); }
     virtual Inside inside() const = 0;
     // Outside this box the field is constant, so no surface can be there.
     virtual Box3 domain() const = 0;

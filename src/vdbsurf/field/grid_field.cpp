@@ -53,6 +53,7 @@ struct GridField::Impl {
     virtual double valueAndGradient(const Vec3d& p, Vec3d& gradient) const = 0;
     virtual void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const = 0;
     virtual Interval bounds(const Box3& box) const = 0;
+    virtual bool mayStraddle(const Box3& box, double iso) const = 0;
     virtual Box3 domain() const = 0;
     virtual Interval valueRange() const = 0;
     virtual double voxelSize() const = 0;
@@ -221,6 +222,20 @@ public:
     }
 
     Interval bounds(const Box3& box) const override {
+        Interval out;
+        boundsUnlessApart(box, nullptr, out);
+        return out;
+    }
+
+    bool mayStraddle(const Box3& box, double iso) const override {
+        Interval out;
+        return boundsUnlessApart(box, &iso, out) && straddles(out, iso);
+    }
+
+    // bounds(box) in `out`; with an iso value, first the range of the voxels the box reads (which
+    // holds the interpolant's): if that does not straddle iso, returns false before the exact
+    // range (most cells a lattice asks about lie clear of the surface).
+    bool boundsUnlessApart(const Box3& box, const double* iso, Interval& out) const {
         const Interval3 ib = indexBox(box);
         const openvdb::Vec3d &lo = ib.lo, &hi = ib.hi;
         // Between voxel planes the trilinear interpolant is multilinear, so over a box that
@@ -253,6 +268,14 @@ public:
             if (dims.x > 6 || dims.y > 6 || dims.z > 6) throw std::logic_error("GridField::bounds: more voxels than ticks allow");
             Acc acc(mTree);
             sampleBlock(acc, base, dims, voxels);
+            if (iso) {
+                // Widened by the rounding of BoxSampler's three lerps in ValueT, which can land a
+                // few ulps beyond the voxels' range.
+                MinMax range;
+                for (int i = 0; i < dims.x * dims.y * dims.z; ++i) range.add(double(voxels[i]));
+                const double margin = 16 * double(std::numeric_limits<ValueT>::epsilon()) * std::max(std::fabs(range.lo), std::fabs(range.hi));
+                if (!straddles({range.lo - margin, range.hi + margin}, *iso)) return false;
+            }
             MinMax mm;
             for (int i = 0; i < nticks[0]; ++i)
                 for (int j = 0; j < nticks[1]; ++j)
@@ -261,13 +284,15 @@ public:
                         const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(t);
                         mm.add(double(interpolateBlock(voxels, dims, idx.x() - base.x(), idx.y() - base.y(), idx.z() - base.z(), t - idx)));
                     }
-            return {mm.lo, mm.hi};
+            out = {mm.lo, mm.hi};
+            return true;
         }
         // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1, the latter
         // with weight zero when q is a whole number (up to rounding, which straddles() absorbs).
         MinMax mm;
         query(CoordBBox(lowerSupport(lo), upperSupport(hi)), mm);
-        return {mm.lo, mm.hi};
+        out = {mm.lo, mm.hi};
+        return true;
     }
 
     LatticeFrame naturalFrame(double h) const override {
@@ -355,6 +380,7 @@ public:
         Coord offset;
         Acc acc(mTree);
         if (!directStride(frame, stride, offset)) {
+            if (mAxisAligned && sampleNodesFromBlock(frame, first, dims, needed, out)) return;
             std::size_t n = 0;
             for (int k = 0; k < dims.z; ++k)
                 for (int j = 0; j < dims.y; ++j)
@@ -377,6 +403,46 @@ public:
                     if (needed && !needed[n]) continue;
                     out[n] = double(acc.getValue(Coord(base.x() + stride * i, base.y() + stride * j, base.z() + stride * k)));
                 }
+    }
+
+    // sampleNodes on an axis-aligned grid whose voxels the nodes do not sit on: the voxels under
+    // the nodes read once, leaf by leaf, then each node interpolated from them as BoxSampler
+    // does (value()'s bits) — not eight accessor reads a node. False (nothing written) when the
+    // voxels under the nodes are too many to gather (nodes much farther apart than voxels).
+    bool sampleNodesFromBlock(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
+                              double* out) const {
+        using ValueT = typename TreeT::ValueType;
+        constexpr std::size_t kMaxVoxels = 32 * 32 * 32;
+        // Index position of each node along each axis: worldToIndex of nodeWorld, one axis at a time.
+        std::array<std::vector<double>, 3> at;
+        Coord base;
+        Vec3i size;
+        for (int a = 0; a < 3; ++a) {
+            at[std::size_t(a)].resize(std::size_t(dims[std::size_t(a)]));
+            for (int i = 0; i < dims[std::size_t(a)]; ++i) {
+                Vec3i n = first;
+                n[std::size_t(a)] += i;
+                at[std::size_t(a)][std::size_t(i)] = (frame.nodeWorld(n)[std::size_t(a)] - mOrigin[std::size_t(a)]) / mVoxel;
+            }
+            const auto [lo, hi] = std::minmax_element(at[std::size_t(a)].begin(), at[std::size_t(a)].end());
+            if (!std::isfinite(*lo) || !std::isfinite(*hi) || *hi - *lo > 64) return false;
+            base[a] = int(std::floor(*lo));
+            size[std::size_t(a)] = int(std::floor(*hi)) + 2 - base[a];
+        }
+        if (std::size_t(size.x) * std::size_t(size.y) * std::size_t(size.z) > kMaxVoxels) return false;
+        std::vector<ValueT> voxels(std::size_t(size.x) * std::size_t(size.y) * std::size_t(size.z));
+        Acc acc(mTree);
+        sampleBlock(acc, base, size, voxels.data());
+        std::size_t n = 0;
+        for (int k = 0; k < dims.z; ++k)
+            for (int j = 0; j < dims.y; ++j)
+                for (int i = 0; i < dims.x; ++i, ++n) {
+                    if (needed && !needed[n]) continue;
+                    const openvdb::Vec3d ip(at[0][std::size_t(i)], at[1][std::size_t(j)], at[2][std::size_t(k)]);
+                    const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(ip);
+                    out[n] = double(interpolateBlock(voxels.data(), size, idx.x() - base.x(), idx.y() - base.y(), idx.z() - base.z(), ip - idx));
+                }
+        return true;
     }
 
     bool piecewiseLinearCrossing(const Vec3d& a, const Vec3d& b, double iso, Inside side, double& t) const override {
@@ -782,6 +848,7 @@ double GridField::value(const Vec3d& p) const { return mImpl->value(p); }
 Vec3d GridField::gradient(const Vec3d& p) const { return mImpl->gradient(p); }
 double GridField::valueAndGradient(const Vec3d& p, Vec3d& gradient) const { return mImpl->valueAndGradient(p, gradient); }
 Interval GridField::bounds(const Box3& box) const { return mImpl->bounds(box); }
+bool GridField::mayStraddle(const Box3& box, double iso) const { return mImpl->mayStraddle(box, iso); }
 void GridField::values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const { mImpl->values(box, points, n, out); }
 Box3 GridField::domain() const { return mImpl->domain(); }
 std::optional<double> GridField::naturalSpacing() const { return mImpl->voxelSize(); }

@@ -22,6 +22,7 @@ public:
     Vec3d gradient(const Vec3d& p) const override;
     double valueAndGradient(const Vec3d& p, Vec3d& gradient) const override;
     Interval bounds(const Box3& box) const override;
+    bool mayStraddle(const Box3& box, double iso) const override;
     void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override;
     Inside inside() const override { return mInside; }
     Box3 domain() const override;

@@ -74,7 +74,7 @@ std::vector<Coord> straddlingChildren(const Field& field, const LatticeFrame& fr
                         ++n;
                         CoordBBox cb(Coord(x, y, z), Coord(x, y, z).offsetBy(child - 1));
                         cb.intersect(range);
-                        if (straddles(field.bounds(cellsBox(frame, cb)), iso)) kept[i].emplace_back(x, y, z);
+                        if (field.mayStraddle(cellsBox(frame, cb), iso)) kept[i].emplace_back(x, y, z);
                     }
             count += n;
             survivors += kept[i].size();
@@ -217,7 +217,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
                         // The field may cross iso inside a cell whose corners agree: ask its bounds.
                         for (int z = lo.z(); z <= hi.z(); ++z) {
                             if (row & (1u << z)) continue;
-                            if (straddles(field.bounds(frame.cellBox({o.x() + x, o.y() + y, o.z() + z})), iso)) row |= 1u << z;
+                            if (field.mayStraddle(frame.cellBox({o.x() + x, o.y() + y, o.z() + z}), iso)) row |= 1u << z;
                         }
                     }
                     word |= std::uint64_t(row) << (8 * y);
