@@ -363,12 +363,18 @@ public:
 
     // A point on a lattice edge through voxel centres reads the edge's two voxels alone (the
     // others weigh zero), so a crossing between two inactive voxels has no data, as volumeToMesh
-    // has no edge there.
+    // has no edge there. The points are floats: within a few of their ulps of a voxel plane, a
+    // point is on it.
     void pointsWithData(const Vec3f* points, std::size_t n, std::uint8_t* out) const override {
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
             Acc acc(mTree);
             for (std::size_t i = r.begin(); i < r.end(); ++i) {
-                const openvdb::Vec3d ip = worldToIndex(Vec3d(points[i]));
+                openvdb::Vec3d ip = worldToIndex(Vec3d(points[i]));
+                for (int a = 0; a < 3; ++a) {
+                    const double plane = std::nearbyint(ip[a]);
+                    const double ulps = 4 * double(std::numeric_limits<float>::epsilon()) * (std::fabs(double(points[i][std::size_t(a)])) / mVoxel + 1);
+                    if (std::fabs(ip[a] - plane) < ulps) ip[a] = plane;
+                }
                 out[i] = std::uint8_t(anyActive(acc, CoordBBox(lowerSupport(ip), upperSupport(ip))));
             }
         });
