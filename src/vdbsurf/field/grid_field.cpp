@@ -516,63 +516,62 @@ private:
         return Coord(c(v.x()), c(v.y()), c(v.z()));
     }
 
+    // Calls fn(leaf, lo, hi) for each leaf-sized cube (origin `leaf`) the box [base, end) meets,
+    // with the box's part in it, [lo, hi).
+    template <typename Fn>
+    static void forEachLeafPart(const Coord& base, const Coord& end, Fn&& fn) {
+        for (int cz = base.z() & ~7; cz < end.z(); cz += 8)
+            for (int cy = base.y() & ~7; cy < end.y(); cy += 8)
+                for (int cx = base.x() & ~7; cx < end.x(); cx += 8)
+                    fn(Coord(cx, cy, cz), Coord(std::max(cx, base.x()), std::max(cy, base.y()), std::max(cz, base.z())),
+                       Coord(std::min(cx + 8, end.x()), std::min(cy + 8, end.y()), std::min(cz + 8, end.z())));
+    }
+
     // Every voxel of the box [base, base + dims), x fastest, leaf by leaf: one probe per leaf the
     // box touches and direct reads of its buffer, instead of an accessor lookup per voxel.
     template <typename OutT>
     void sampleBlock(Acc& acc, const Coord& base, const Vec3i& dims, OutT* out) const {
-        const Coord end(base.x() + dims.x, base.y() + dims.y, base.z() + dims.z);
-        for (int cz = base.z() & ~7; cz < end.z(); cz += 8)
-            for (int cy = base.y() & ~7; cy < end.y(); cy += 8)
-                for (int cx = base.x() & ~7; cx < end.x(); cx += 8) {
-                    const int x0 = std::max(cx, base.x()), x1 = std::min(cx + 8, end.x());
-                    const int y0 = std::max(cy, base.y()), y1 = std::min(cy + 8, end.y());
-                    const int z0 = std::max(cz, base.z()), z1 = std::min(cz + 8, end.z());
-                    auto at = [&](int x, int y, int z) -> OutT& {
-                        return out[(std::size_t(z - base.z()) * std::size_t(dims.y) + std::size_t(y - base.y())) * std::size_t(dims.x) +
-                                   std::size_t(x - base.x())];
-                    };
-                    if (const LeafT* leaf = acc.probeConstLeaf(Coord(cx, cy, cz))) {
-                        const auto* data = leaf->buffer().data();
-                        for (int z = z0; z < z1; ++z)
-                            for (int y = y0; y < y1; ++y)
-                                for (int x = x0; x < x1; ++x) at(x, y, z) = OutT(data[((x & 7) << 6) | ((y & 7) << 3) | (z & 7)]);
-                    } else {
-                        const OutT v = OutT(acc.getValue(Coord(cx, cy, cz)));
-                        for (int z = z0; z < z1; ++z)
-                            for (int y = y0; y < y1; ++y)
-                                for (int x = x0; x < x1; ++x) at(x, y, z) = v;
-                    }
-                }
+        auto at = [&](int x, int y, int z) -> OutT& {
+            return out[(std::size_t(z - base.z()) * std::size_t(dims.y) + std::size_t(y - base.y())) * std::size_t(dims.x) +
+                       std::size_t(x - base.x())];
+        };
+        forEachLeafPart(base, base.offsetBy(dims.x, dims.y, dims.z), [&](const Coord& leafOrigin, const Coord& lo, const Coord& hi) {
+            if (const LeafT* leaf = acc.probeConstLeaf(leafOrigin)) {
+                const auto* data = leaf->buffer().data();
+                for (int z = lo.z(); z < hi.z(); ++z)
+                    for (int y = lo.y(); y < hi.y(); ++y)
+                        for (int x = lo.x(); x < hi.x(); ++x) at(x, y, z) = OutT(data[((x & 7) << 6) | ((y & 7) << 3) | (z & 7)]);
+            } else {
+                const OutT v = OutT(acc.getValue(leafOrigin));
+                for (int z = lo.z(); z < hi.z(); ++z)
+                    for (int y = lo.y(); y < hi.y(); ++y)
+                        for (int x = lo.x(); x < hi.x(); ++x) at(x, y, z) = v;
+            }
+        });
     }
 
     // Bit z of column[x * 9 + y]: is voxel base + (x, y, z) active (or in an active tile), for
     // x, y, z in 0 .. 8. A leaf's mask holds, in word x, byte y, its eight voxels along z.
     void activeColumns(Acc& acc, const Coord& base, std::array<std::uint16_t, 81>& column) const {
-        const Coord end = base.offsetBy(9);
-        for (int lx = base.x() & ~7; lx < end.x(); lx += 8)
-            for (int ly = base.y() & ~7; ly < end.y(); ly += 8)
-                for (int lz = base.z() & ~7; lz < end.z(); lz += 8) {
-                    const int x0 = std::max(lx, base.x()), x1 = std::min(lx + 8, end.x());
-                    const int y0 = std::max(ly, base.y()), y1 = std::min(ly + 8, end.y());
-                    const int z0 = std::max(lz, base.z()), z1 = std::min(lz + 8, end.z());
-                    // Bits z0 .. z1 - 1 of the leaf, moved to column positions z - base.z.
-                    const unsigned zBits = (0xFFu << (z0 - lz)) & (0xFFu >> (8 - (z1 - lz)));
-                    const int shift = lz - base.z();
-                    auto put = [&](int x, int y, unsigned bits) {
-                        column[std::size_t((x - base.x()) * 9 + (y - base.y()))] |=
-                            std::uint16_t(shift >= 0 ? bits << shift : bits >> -shift);
-                    };
-                    if (const LeafT* leaf = acc.probeConstLeaf(Coord(lx, ly, lz))) {
-                        const auto& mask = leaf->getValueMask();
-                        for (int x = x0; x < x1; ++x) {
-                            const std::uint64_t word = mask.template getWord<std::uint64_t>(openvdb::Index(x & 7));
-                            for (int y = y0; y < y1; ++y) put(x, y, unsigned(word >> (8 * (y & 7))) & zBits);
-                        }
-                    } else if (acc.isValueOn(Coord(lx, ly, lz))) {
-                        for (int x = x0; x < x1; ++x)
-                            for (int y = y0; y < y1; ++y) put(x, y, zBits);
-                    }
+        forEachLeafPart(base, base.offsetBy(9), [&](const Coord& leafOrigin, const Coord& lo, const Coord& hi) {
+            // Bits lo.z .. hi.z - 1 of the leaf, moved to column positions z - base.z.
+            const int lz = leafOrigin.z();
+            const unsigned zBits = (0xFFu << (lo.z() - lz)) & (0xFFu >> (8 - (hi.z() - lz)));
+            const int shift = lz - base.z();
+            auto put = [&](int x, int y, unsigned bits) {
+                column[std::size_t((x - base.x()) * 9 + (y - base.y()))] |= std::uint16_t(shift >= 0 ? bits << shift : bits >> -shift);
+            };
+            if (const LeafT* leaf = acc.probeConstLeaf(leafOrigin)) {
+                const auto& mask = leaf->getValueMask();
+                for (int x = lo.x(); x < hi.x(); ++x) {
+                    const std::uint64_t word = mask.template getWord<std::uint64_t>(openvdb::Index(x & 7));
+                    for (int y = lo.y(); y < hi.y(); ++y) put(x, y, unsigned(word >> (8 * (y & 7))) & zBits);
                 }
+            } else if (acc.isValueOn(leafOrigin)) {
+                for (int x = lo.x(); x < hi.x(); ++x)
+                    for (int y = lo.y(); y < hi.y(); ++y) put(x, y, zBits);
+            }
+        });
     }
 
     // Is any voxel of the box active, or in an active tile? A box of a few leaves (a cell's support
