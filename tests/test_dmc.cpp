@@ -904,6 +904,54 @@ TEST_CASE("welding groups a node's vertices alike wherever its lattice coordinat
     CHECK(sorted(welded[0].points) == sorted(test::cubeMesh().points));
 }
 
+TEST_CASE("a weld that splits a pinched polygon rewrites the mesh whether its polygons grow or shrink") {
+    // The weld rewrites the polygons in place when the output never runs ahead of the input, and
+    // the offsets into a new array when a pinched polygon splits before enough others collapse.
+    // Either way: every polygon left is the one expected, by its corners' positions, and the
+    // polygons after the welded ones keep their points.
+    auto corners = [](const Mesh& m) {
+        std::vector<std::vector<std::array<float, 3>>> polys;
+        for (std::size_t f = 0; f < m.polygonCount(); ++f) {
+            std::vector<std::array<float, 3>> c;
+            for (std::uint32_t i = m.offsets[f]; i < m.offsets[f + 1]; ++i) {
+                const Vec3f& p = m.points[m.indices[i]];
+                c.push_back({p.x, p.y, p.z});
+            }
+            std::rotate(c.begin(), std::min_element(c.begin(), c.end()), c.end()); // one start per cycle
+            polys.push_back(c);
+        }
+        std::sort(polys.begin(), polys.end());
+        return polys;
+    };
+    for (bool collapseFirst : {false, true}) {
+        INFO((collapseFirst ? "a collapsing triangle first" : "the pinched hexagon first"));
+        Mesh m;
+        // A hexagon whose corners 2 and 5 lie on one node (the pinch), a triangle with two
+        // corners on another node (collapses), and a triangle of points after them all.
+        m.points = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {2, 2, 0}, {0, 2, 0}, {1, 1, 0},
+                    {5, 0, 0}, {6, 0, 0}, {6, 0, 0}, {9, 0, 0}, {9, 1, 0}, {8, 1, 0}};
+        const std::vector<std::uint32_t> hexagon = {0, 1, 2, 3, 4, 5}, collapsing = {6, 7, 8}, last = {9, 10, 11};
+        for (const auto* poly : collapseFirst ? std::vector<const std::vector<std::uint32_t>*>{&collapsing, &hexagon, &last}
+                                              : std::vector<const std::vector<std::uint32_t>*>{&hexagon, &collapsing, &last}) {
+            m.indices.insert(m.indices.end(), poly->begin(), poly->end());
+            m.offsets.push_back(std::uint32_t(m.indices.size()));
+        }
+        const std::vector<std::pair<std::uint32_t, Vec3i>> atNode = {{2, {1, 1, 0}}, {5, {1, 1, 0}}, {7, {6, 0, 0}}, {8, {6, 0, 0}}};
+        const NodeWeldStats stats = weldNodeVertices(m, atNode);
+        CHECK(stats.weldedVertices == 2);
+        CHECK(stats.collapsedPolygons == 1);
+        CHECK(stats.splitVertices == 1); // the pinch's two triangles meet at one point: a vertex each
+        CHECK(m.offsets.size() == 4);
+        CHECK(m.offsets.back() == m.indices.size());
+        using C = std::vector<std::array<float, 3>>;
+        CHECK(corners(m) == std::vector<C>{C{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}}, C{{0, 2, 0}, {1, 1, 0}, {2, 2, 0}},
+                                           C{{8, 1, 0}, {9, 0, 0}, {9, 1, 0}}});
+        // The points the collapsed triangle alone used are gone; one copy of the pinch point was added.
+        CHECK(m.points.size() == 9);
+        REQUIRE(checkTopology(m).boundaryEdges == 9);
+    }
+}
+
 TEST_CASE("on a smooth torus, few nodes go onto edges: curvature's lines differ from cell to cell") {
     // Tangent planes of a tube 1.5 to 3 cells thick meet at more than the edge angle, so cells
     // there propose "edges"; their lines differ from cell to cell, so another cell rarely confirms

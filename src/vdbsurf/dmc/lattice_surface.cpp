@@ -9,6 +9,7 @@
 #include "vdbsurf/dmc/node_weld.h"
 
 #include <openvdb/tree/LeafManager.h>
+#include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -230,6 +231,10 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
     const std::size_t tasks = only ? only->size() : leafCount;
 
     Progress progress("surface crossings", tasks, options.cancel);
+    struct Crossings {
+        std::vector<Vec3f> vertices, normals;
+    };
+    tbb::enumerable_thread_specific<Crossings> scratchCrossings;
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tasks, 8), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*lattice.cells);
@@ -246,6 +251,12 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
         std::array<std::uint8_t, kLeafNodeCount> moved;
         std::array<Vec3f, kLeafNodeCount> offsets;
         NodeGradients gradients;
+        // A leaf's crossings are gathered here and then copied at their exact count: grown in
+        // place, each leaf's arrays would hold up to twice what they need, all of it fresh
+        // memory the process pays a page fault for (a tenth of the armadillo's DMC faults).
+        Crossings& scratch = scratchCrossings.local();
+        std::vector<Vec3f>& vertices = scratch.vertices;
+        std::vector<Vec3f>& normals = scratch.normals;
         for (std::size_t task = r.begin(); task < r.end(); ++task) {
             const std::size_t li = only ? (*only)[task] : task;
             const MaskLeaf& leaf = leafManager.leaf(li);
@@ -274,6 +285,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 sampleLeafNodes(field, frame, leaf, needed, vals);
             }
             moved.fill(0);
+            vertices.clear();
+            normals.clear();
             bool apronSampled = false; // without node gradients: gradients.sampleValues, once needed
             int aroundMoved = -1;      // do the leaf's nodes or those beside them move? (once needed)
             // Most leaves hold no moved node: then the three probes per node below are skipped.
@@ -316,7 +329,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     if (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side)) config |= 1u << c;
                 }
                 w.config[rank] = std::uint8_t(config);
-                w.vertexPrefix[rank] = std::uint16_t(w.vertices.size());
+                w.vertexPrefix[rank] = std::uint16_t(vertices.size());
                 if (config == 0 || config == 255) continue;
                 ++w.cellsWithSurface;
                 const CubeCase& cc = cubeCase(config);
@@ -347,7 +360,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     // be distinct vertices at one point, and the polygons between them would have
                     // no area (a box's corner cap; nodes bridged onto a face at the lattice's half
                     // cells).
-                    const std::uint32_t local = std::uint32_t(w.vertices.size());
+                    const std::uint32_t local = std::uint32_t(vertices.size());
                     Vec3d p;
                     double t;
                     int atEnd = va == iso ? 0 : (vb == iso ? 1 : -1);
@@ -390,14 +403,14 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                         const Vec3i ln = atEnd == 0 ? la : lb;
                         if (weld) w.nodeVertices.emplace_back(local, w.origin.offsetBy(ln.x, ln.y, ln.z));
                     }
-                    w.vertices.push_back(Vec3f(p));
+                    vertices.push_back(Vec3f(p));
                     if (options.normals) {
                         // On a grid at its own voxel size the gradient along an undeformed edge is
                         // that of the nodes' central differences, interpolated; else the field's.
                         const bool fromNodes = nodeGradients && !moved[ia] && !moved[ib];
                         Vec3d g = fromNodes ? gradients.at(la) * (1 - t) + gradients.at(lb) * t : field.gradient(p);
                         const double len = std::sqrt(dot(g, g));
-                        w.normals.push_back(len > 0 && std::isfinite(len) ? Vec3f(g * (outward / len)) : Vec3f());
+                        normals.push_back(len > 0 && std::isfinite(len) ? Vec3f(g * (outward / len)) : Vec3f());
                     }
                 }
                 w.ownedEdges[rank] = owned;
@@ -411,6 +424,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     w.indexCount += loopIndices(cc.loopSize[l], tri, options.keepLoops);
                 }
             }
+            w.vertices.assign(vertices.begin(), vertices.end());
+            w.normals.assign(normals.begin(), normals.end());
             if (nodeGradients && options.sharpEdgeCosine < 1 && unresolvedForFeatures(w, options.unresolvedShare)) {
                 std::fill(w.sharpCandidate.begin(), w.sharpCandidate.end(), std::uint8_t(0));
                 w.unresolved = true;
@@ -644,6 +659,12 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
     }
 
     Mesh mesh;
+    // The weld gives a welded node one vertex per fan where several meet (rarely more than two):
+    // room for those, so that adding them does not move the whole array (a node has two vertices
+    // or more to be welded, so there are fewer such nodes than vertices on nodes).
+    std::size_t onNodes = 0;
+    for (const LeafWork& w : im.work) onNodes += w.nodeVertices.size();
+    mesh.points.reserve(std::size_t(vtotal) + onNodes);
     mesh.points.resize(vtotal);
     mesh.offsets.assign(std::size_t(ftotal) + 1, 0);
     mesh.indices.resize(itotal);

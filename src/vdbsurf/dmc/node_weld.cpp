@@ -291,15 +291,17 @@ std::pair<std::size_t, std::size_t> candidatesIn(const std::vector<std::uint32_t
 // The mesh's polygons with each candidate replaced by its loops (pillows left out), and the
 // points no polygon then uses dropped (the order of the rest kept); the new numbers of the
 // polygons that came from candidates (ascending) go to fromCandidates. Returns old -> new point
-// numbers (kNone for dropped points) and leaves room for `spare` more points, so that adding them
-// later does not move the whole array. Polygons between candidates are copied as runs: they are
-// nearly all of them, and only their vertex numbers change.
+// numbers (kNone for dropped points). Rewritten in place, front to back: a candidate's loops hold
+// no more vertices than it did, and points only move down, so nothing is written before it is
+// read; the polygon count can grow where a pinched polygon splits, and then the offsets alone go
+// to a new array. (A rewrite into new arrays touched 6 MB of fresh memory on the armadillo, a
+// page fault per 4 KB: the weld's largest cost.) Polygons between candidates move as runs: they
+// are nearly all of them, and only their vertex numbers change.
 std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidates, const std::vector<std::uint32_t>& firstLoop,
-                                             const Loops& loops, const std::vector<std::uint8_t>& pillow, std::size_t spare,
+                                             const Loops& loops, const std::vector<std::uint8_t>& pillow,
                                              std::vector<std::uint32_t>& fromCandidates) {
     const std::size_t polygons = mesh.polygonCount(), points = mesh.points.size();
-    const std::size_t chunks = chunkCount(polygons);
-    std::vector<std::size_t> polygonCount(chunks, 0), indexCount(chunks, 0);
+    // Which points the result uses: those of polygons between candidates, and of kept loops.
     std::unique_ptr<std::atomic<std::uint8_t>[]> used(new std::atomic<std::uint8_t>[points]);
     forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
         for (std::size_t v = b; v < e; ++v) used[v].store(0, std::memory_order_relaxed);
@@ -307,34 +309,18 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
     auto use = [&](const std::uint32_t* p, std::size_t n) {
         for (std::size_t i = 0; i < n; ++i) used[p[i]].store(1, std::memory_order_relaxed);
     };
-    // Calls run(first, last) for each run of polygons between candidates and loop(l) for each
-    // kept loop of a candidate, in polygon order.
-    auto forEachOutput = [&](std::size_t b, std::size_t e, auto&& run, auto&& loop) {
+    forEachChunk(polygons, [&](std::size_t, std::size_t b, std::size_t e) {
         const auto [k0, k1] = candidatesIn(candidates, b, e);
         std::size_t f = b;
-        for (std::size_t k = k0; k < k1; ++k) {
-            if (candidates[k] > f) run(f, std::size_t(candidates[k]));
+        for (std::size_t k = k0; k <= k1; ++k) {
+            const std::size_t until = k < k1 ? std::size_t(candidates[k]) : e;
+            use(mesh.indices.data() + mesh.offsets[f], mesh.offsets[until] - mesh.offsets[f]);
+            if (k == k1) break;
             for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l)
-                if (!pillow[l]) loop(l);
-            f = std::size_t(candidates[k]) + 1;
+                if (!pillow[l]) use(loops.loop(l), loops.size(l));
+            f = until + 1;
         }
-        if (e > f) run(f, e);
-    };
-    forEachChunk(polygons, [&](std::size_t c, std::size_t b, std::size_t e) {
-        forEachOutput(
-            b, e,
-            [&](std::size_t f0, std::size_t f1) {
-                polygonCount[c] += f1 - f0;
-                indexCount[c] += mesh.offsets[f1] - mesh.offsets[f0];
-                use(mesh.indices.data() + mesh.offsets[f0], mesh.offsets[f1] - mesh.offsets[f0]);
-            },
-            [&](std::uint32_t l) {
-                ++polygonCount[c];
-                indexCount[c] += loops.size(l);
-                use(loops.loop(l), loops.size(l));
-            });
     });
-    // New point numbers, in order.
     std::vector<std::uint32_t> kept(chunkCount(points), 0);
     forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
         for (std::size_t v = b; v < e; ++v) kept[c] += used[v].load(std::memory_order_relaxed);
@@ -348,39 +334,53 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
     });
     used.reset();
 
-    const std::vector<std::size_t> polygonBase = prefixSums(polygonCount), indexBase = prefixSums(indexCount);
-    std::vector<std::uint32_t> offsets(polygonBase.back() + 1, 0), indices(indexBase.back());
-    std::vector<std::vector<std::uint32_t>> fromParts(chunks);
-    forEachChunk(polygons, [&](std::size_t c, std::size_t b, std::size_t e) {
-        std::size_t f = polygonBase[c], i = indexBase[c];
-        forEachOutput(
-            b, e,
-            [&](std::size_t f0, std::size_t f1) {
-                const std::uint32_t from = mesh.offsets[f0], to = mesh.offsets[f1];
-                const std::uint32_t shift = std::uint32_t(i) - from; // (mod 2^32: offsets stay below it)
-                for (std::size_t g = f0 + 1; g <= f1; ++g) offsets[++f] = mesh.offsets[g] + shift;
-                for (std::uint32_t j = from; j < to; ++j) indices[i++] = newId[mesh.indices[j]];
-            },
-            [&](std::uint32_t l) {
-                fromParts[c].push_back(std::uint32_t(f));
-                const std::uint32_t* p = loops.loop(l);
-                for (std::uint32_t j = 0; j < loops.size(l); ++j) indices[i++] = newId[p[j]];
-                offsets[++f] = std::uint32_t(i);
-            });
-    });
+    // Can the offsets be rewritten in place: is the output, after each candidate, no more
+    // polygons than the input up to it? (Between candidates the difference stays.)
+    std::size_t keptPolygons = polygons, loopsSoFar = 0;
+    bool offsetsInPlace = true;
+    for (std::size_t k = 0; k < candidates.size(); ++k) {
+        std::size_t mine = 0;
+        for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l) mine += !pillow[l];
+        loopsSoFar += mine;
+        keptPolygons = keptPolygons - 1 + mine;
+        offsetsInPlace = offsetsInPlace && std::size_t(candidates[k]) - k + loopsSoFar <= std::size_t(candidates[k]) + 1;
+    }
+    std::vector<std::uint32_t> grown;
+    if (!offsetsInPlace) grown.resize(keptPolygons + 1, 0);
+    std::uint32_t* offsets = offsetsInPlace ? mesh.offsets.data() : grown.data();
+    std::uint32_t* indices = mesh.indices.data();
     fromCandidates.clear();
-    for (const auto& p : fromParts) fromCandidates.insert(fromCandidates.end(), p.begin(), p.end());
-    mesh.offsets = std::move(offsets);
-    mesh.indices = std::move(indices);
-    // (After the old polygons are freed: fresh pages cost as much as the copying.)
-    std::vector<Vec3f> keptPoints;
-    keptPoints.reserve(pointBase.back() + spare);
-    keptPoints.resize(pointBase.back());
-    forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t v = b; v < e; ++v)
-            if (newId[v] != kNone) keptPoints[newId[v]] = mesh.points[v];
-    });
-    mesh.points = std::move(keptPoints);
+    std::size_t f = 0, i = 0;        // output: polygons and indices written
+    std::uint32_t runStart = 0;      // input: the first index of the polygon read next
+    auto copyRun = [&](std::size_t f0, std::size_t f1) { // input polygons [f0, f1)
+        for (std::size_t g = f0; g < f1; ++g) {
+            const std::uint32_t end = mesh.offsets[g + 1]; // (read before offsets[f + 1] <= it is written)
+            for (std::uint32_t j = runStart; j < end; ++j) indices[i++] = newId[indices[j]];
+            runStart = end;
+            offsets[++f] = std::uint32_t(i);
+        }
+    };
+    std::size_t next = 0;
+    for (std::size_t k = 0; k < candidates.size(); ++k) {
+        copyRun(next, candidates[k]);
+        const std::uint32_t candidateEnd = mesh.offsets[std::size_t(candidates[k]) + 1]; // (before its loops' offsets are written)
+        for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l) {
+            if (pillow[l]) continue;
+            fromCandidates.push_back(std::uint32_t(f));
+            const std::uint32_t* p = loops.loop(l);
+            for (std::uint32_t j = 0; j < loops.size(l); ++j) indices[i++] = newId[p[j]];
+            offsets[++f] = std::uint32_t(i);
+        }
+        runStart = candidateEnd;
+        next = std::size_t(candidates[k]) + 1;
+    }
+    copyRun(next, polygons);
+    if (offsetsInPlace) mesh.offsets.resize(f + 1);
+    else mesh.offsets = std::move(grown);
+    mesh.indices.resize(i);
+    for (std::size_t v = 0; v < points; ++v)
+        if (newId[v] != kNone) mesh.points[newId[v]] = mesh.points[v];
+    mesh.points.resize(pointBase.back());
     return newId;
 }
 
@@ -478,12 +478,8 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
         std::vector<std::uint8_t> pillow;
         std::uint64_t collapsed = markReversedPairs(loops, isRep, pillow);
         for (std::uint64_t c : collapsedIn) collapsed += c;
-        // A welded vertex where several fans meet gets a copy per further fan (rarely more than
-        // two fans): room for those.
-        std::size_t weldedNodes = 0;
-        for (std::size_t s = 0; s < slots; ++s) weldedNodes += !apart[s];
         std::vector<std::uint32_t> fromCandidates;
-        const std::vector<std::uint32_t> newId = replaceCandidates(mesh, candidates, firstLoop, loops, pillow, 2 * weldedNodes, fromCandidates);
+        const std::vector<std::uint32_t> newId = replaceCandidates(mesh, candidates, firstLoop, loops, pillow, fromCandidates);
         stats.weldedVertices = welded;
         stats.collapsedPolygons = collapsed;
         // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
