@@ -110,3 +110,23 @@ TEST_CASE("a formula undefined on the lattice is reported with the point") {
     const LatticeFrame frame = f.naturalFrame(0.1);
     CHECK_THROWS_WITH(buildLattice(f, frame, latticeCellRange(f, frame), 0.0), Catch::Contains("NaN") && Catch::Contains("sqrt(x)"));
 }
+
+TEST_CASE("a sparse cell tree converts to OpenVDB's standard mask tree cell for cell, tiles included") {
+    // The lattice keeps its cells in a tree of small internal nodes (sparse_tree.h); files get
+    // the standard configuration, which other tools read. Cells in all eight octants around the
+    // origin, one far away, and an active tile of 8^3 cells.
+    CellTree cells(false);
+    std::vector<openvdb::Coord> on;
+    for (int d = 0; d < 8; ++d) on.emplace_back((d & 1) ? 3 : -5, (d & 2) ? 17 : -1, (d & 4) ? 100 : -300);
+    on.emplace_back(123456, -7, 42);
+    for (const auto& c : on) cells.setValueOn(c);
+    cells.addTile(1, openvdb::Coord(64, 64, 64), true, true);
+    REQUIRE(cells.activeVoxelCount() == on.size() + 512);
+    const openvdb::MaskTree::Ptr standard = toStandardMaskTree(cells);
+    CHECK(standard->activeVoxelCount() == cells.activeVoxelCount());
+    for (const auto& c : on) CHECK(standard->isValueOn(c));
+    CHECK(standard->isValueOn(openvdb::Coord(64, 64, 64)));
+    CHECK(standard->isValueOn(openvdb::Coord(71, 71, 71)));
+    CHECK_FALSE(standard->isValueOn(openvdb::Coord(72, 64, 64)));
+    CHECK_FALSE(standard->isValueOn(openvdb::Coord(0, 0, 0)));
+}

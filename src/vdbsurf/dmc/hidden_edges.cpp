@@ -205,7 +205,7 @@ private:
 // Every edge of the active cells, examined leaf by leaf with the leaf's node values.
 std::vector<Move> examineActiveCells(const EdgeExaminer& examiner, const Field& field, const Lattice& lattice,
                                      const LatticeDeformation& deformation, const CancelToken* cancel, HiddenEdgeStats& stats) {
-    openvdb::tree::LeafManager<const openvdb::MaskTree> leaves(*lattice.cells);
+    openvdb::tree::LeafManager<const CellTree> leaves(*lattice.cells);
     std::vector<std::vector<Move>> perLeaf(leaves.leafCount());
     std::vector<std::uint64_t> examined(leaves.leafCount(), 0), evaluated(leaves.leafCount(), 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves.leafCount(), 4), [&](const tbb::blocked_range<std::size_t>& r) {

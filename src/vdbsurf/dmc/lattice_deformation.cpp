@@ -10,7 +10,7 @@ namespace vdbsurf {
 namespace {
 // (Straight into the lattice's tree: a tree of the cells to add, united afterwards, allocated a
 // full set of internal nodes for a handful of cells.)
-void activateAround(Lattice& lattice, openvdb::tree::ValueAccessor<openvdb::MaskTree>& cells, const openvdb::Coord& n) {
+void activateAround(Lattice& lattice, openvdb::tree::ValueAccessor<CellTree>& cells, const openvdb::Coord& n) {
     for (int d = 0; d < 8; ++d) {
         const openvdb::Coord c = n.offsetBy(-(d & 1), -((d >> 1) & 1), -((d >> 2) & 1));
         if (lattice.cellRange.isInside(c)) cells.setValueOn(c);
@@ -19,13 +19,13 @@ void activateAround(Lattice& lattice, openvdb::tree::ValueAccessor<openvdb::Mask
 } // namespace
 
 void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation) {
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> cells(*lattice.cells);
+    openvdb::tree::ValueAccessor<CellTree> cells(*lattice.cells);
     // Nodes placed on features have offsets too.
     for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) activateAround(lattice, cells, it.getCoord());
 }
 
 void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
-    openvdb::tree::ValueAccessor<openvdb::MaskTree> cells(*lattice.cells);
+    openvdb::tree::ValueAccessor<CellTree> cells(*lattice.cells);
     for (const Vec3i& n : nodes) activateAround(lattice, cells, openvdb::Coord(n.x, n.y, n.z));
 }
 
@@ -36,7 +36,7 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     xform->postTranslate(openvdb::Vec3d(lattice.frame.origin.x, lattice.frame.origin.y, lattice.frame.origin.z));
 
     // Nodes of active cells: the cells dilated by one towards +x, +y, +z.
-    openvdb::MaskTree nodes(*lattice.cells);
+    openvdb::MaskTree nodes = *toStandardMaskTree(*lattice.cells);
     {
         openvdb::MaskTree shifted(false);
         for (auto it = lattice.cells->cbeginValueOn(); it; ++it)
@@ -51,7 +51,7 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     offsets->setVectorType(openvdb::VEC_CONTRAVARIANT_ABSOLUTE);
     offsets->setTransform(xform);
     auto cells = openvdb::MaskGrid::create(false);
-    cells->setTree(std::make_shared<openvdb::MaskTree>(*lattice.cells));
+    cells->setTree(toStandardMaskTree(*lattice.cells));
     cells->setName("cells");
     // A cell's voxel sits at its min-corner node: the same index space as the nodes.
     cells->setTransform(xform->copy());

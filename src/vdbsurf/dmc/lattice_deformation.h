@@ -7,6 +7,7 @@
 // see SparseNodeTree); --lattice-out writes the offsets as a standard Vec3f grid.
 #pragma once
 #include "vdbsurf/core/lattice_frame.h"
+#include "vdbsurf/vdb/sparse_tree.h"
 
 #include <openvdb/openvdb.h>
 
@@ -20,15 +21,7 @@ namespace vdbsurf {
 
 struct Lattice;
 
-// Trees for the few nodes a deformation touches. OpenVDB's standard configuration (internal nodes
-// of 32^3 and 16^3 entries above 8^3 leaves) allocates and fills a 32^3-entry node per octant and
-// a 16^3-entry node per 128^3 block that holds a single moved node: the armadillo's 2,200 feature
-// nodes took 8.8 MB in the offsets tree alone, and meshing a grid from fresh memory (as a new
-// process does) paid ~7 ms for the three trees. Internal nodes of 8^3 entries at both levels
-// cover the same index space with far less.
-template <typename ValueT>
-using SparseNodeTree = openvdb::tree::Tree<
-    openvdb::tree::RootNode<openvdb::tree::InternalNode<openvdb::tree::InternalNode<openvdb::tree::LeafNode<ValueT, 3>, 3>, 3>>>;
+// Trees for the few nodes a deformation touches: sparse_tree.h says why not the standard ones.
 using OffsetTree = SparseNodeTree<openvdb::Vec3f>;
 using NodeMaskTree = SparseNodeTree<openvdb::ValueMask>;
 

@@ -26,7 +26,7 @@ using openvdb::CoordBBox;
 
 namespace {
 
-using MaskLeaf = openvdb::MaskTree::LeafNodeType;
+using MaskLeaf = CellTree::LeafNodeType;
 
 // A crossing this close to a node (in cells) is that node's, as if the node held the iso value:
 // far below any detail a lattice of this spacing shows (node offsets keep 10^-5 cells inside
@@ -164,7 +164,7 @@ struct LatticeSurface::Impl {
     const LatticeDeformation* deformation;
     SurfaceOptions options;
     bool linear;
-    openvdb::tree::LeafManager<const openvdb::MaskTree> leafManager;
+    openvdb::tree::LeafManager<const CellTree> leafManager;
     std::vector<LeafWork> work;
     SurfaceStats stats;
     std::chrono::steady_clock::time_point start;
@@ -178,7 +178,7 @@ struct LatticeSurface::Impl {
     std::unordered_map<const MaskLeaf*, std::int32_t> indexOf;
 
     // The indices of the leaves beside w's (w.neighbor), from indexOf.
-    void linkNeighbours(LeafWork& w, openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>& cells) const {
+    void linkNeighbours(LeafWork& w, openvdb::tree::ValueAccessor<const CellTree, false>& cells) const {
         for (int d = 0; d < 8; ++d) {
             const MaskLeaf* nb = cells.probeConstLeaf(nodeBlock(w.origin, d));
             w.neighbor[std::size_t(d)] = nb ? indexOf.at(nb) : -1;
@@ -237,7 +237,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
     tbb::enumerable_thread_specific<Crossings> scratchCrossings;
 
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, tasks, 8), [&](const tbb::blocked_range<std::size_t>& r) {
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*lattice.cells);
+        openvdb::tree::ValueAccessor<const CellTree, false> acc(*lattice.cells);
         std::unique_ptr<openvdb::tree::ValueAccessor<const OffsetTree, false>> offsetAcc;
         std::unique_ptr<openvdb::tree::ValueAccessor<const NodeMaskTree, false>> surfaceAcc, insideAcc;
         if (deformation) {
@@ -543,7 +543,7 @@ void LatticeSurface::rebuildAround(const std::vector<Vec3i>& nodes, const Lattic
     // Neighbour tables hold leaf indices, which moved: the clean leaves' are renewed here, the
     // dirty leaves' by the first pass.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
-        openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> acc(*im.lattice.cells);
+        openvdb::tree::ValueAccessor<const CellTree, false> acc(*im.lattice.cells);
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
             if (!isDirty[li]) im.linkNeighbours(im.work[li], acc);
         }

@@ -2,6 +2,7 @@
 // pass of the surface and the thin search's cell classification both sample them the same way.
 #pragma once
 #include "vdbsurf/field/field.h"
+#include "vdbsurf/vdb/sparse_tree.h"
 
 #include <openvdb/openvdb.h>
 
@@ -22,14 +23,14 @@ inline int leafCornerIndex(openvdb::Index offset, int c) {
 }
 
 // Marks the corners of the leaf's active cells.
-inline void markLeafNodes(const openvdb::MaskTree::LeafNodeType& leaf, std::array<std::uint8_t, kLeafNodeCount>& needed) {
+inline void markLeafNodes(const CellTree::LeafNodeType& leaf, std::array<std::uint8_t, kLeafNodeCount>& needed) {
     needed.fill(0);
     for (auto it = leaf.cbeginValueOn(); it; ++it)
         for (int c = 0; c < 8; ++c) needed[std::size_t(leafCornerIndex(it.pos(), c))] = 1;
 }
 
 // Values at the corners of the leaf's active cells (`needed` marks them; other entries unset).
-inline void sampleLeafNodes(const Field& field, const LatticeFrame& frame, const openvdb::MaskTree::LeafNodeType& leaf,
+inline void sampleLeafNodes(const Field& field, const LatticeFrame& frame, const CellTree::LeafNodeType& leaf,
                             std::array<std::uint8_t, kLeafNodeCount>& needed, std::array<double, kLeafNodeCount>& values) {
     markLeafNodes(leaf, needed);
     const openvdb::Coord o = leaf.origin();

@@ -30,7 +30,7 @@ int thinSearchSamplesPerAxis(int steps) { return int(std::ceil(steps * std::sqrt
 
 namespace {
 
-using MaskLeaf = openvdb::MaskTree::LeafNodeType;
+using MaskLeaf = CellTree::LeafNodeType;
 
 // Does marching cubes separate two nodes of one side that meet across a diagonal of this cell
 // (inside nodes across a face, either side across the cell)? Then the field may join them.
@@ -71,7 +71,7 @@ bool mayBeCrowded(const std::array<double, kLeafNodeCount>& vals, const std::arr
 // each sorted and unique.
 void classifyCells(const Field& field, const Lattice& lattice, double iso, const CancelToken* cancel, std::uint64_t& hiddenCells,
                    std::vector<Coord>& hidden, std::vector<Coord>& ambiguous, std::vector<Coord>& crowded) {
-    openvdb::tree::LeafManager<const openvdb::MaskTree> leaves(*lattice.cells);
+    openvdb::tree::LeafManager<const CellTree> leaves(*lattice.cells);
     std::vector<std::vector<Coord>> perLeaf(leaves.leafCount()), ambiguousPerLeaf(leaves.leafCount()),
         crowdedPerLeaf(leaves.leafCount());
     std::vector<std::uint64_t> hiddenPerLeaf(leaves.leafCount(), 0);
@@ -152,7 +152,7 @@ public:
     // The node's new offset, if its Ω holds samples on the other side. `around` holds the values
     // of the 3x3x3 nodes centred on it (x fastest).
     std::optional<Vec3f> search(const Coord& n, const double* around, bool onlyUnrepresented,
-                                openvdb::tree::ValueAccessor<const openvdb::MaskTree, false>& cells, std::uint64_t& evaluated,
+                                openvdb::tree::ValueAccessor<const CellTree, false>& cells, std::uint64_t& evaluated,
                                 std::vector<Vec3d>& found) const {
         const LatticeFrame& frame = mLattice.frame;
         const Vec3i ni(n.x(), n.y(), n.z());
@@ -398,7 +398,7 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     {
         Progress progress("thin search", candidates.size(), options.cancel);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
-            openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> cells(*lattice.cells);
+            openvdb::tree::ValueAccessor<const CellTree, false> cells(*lattice.cells);
             NodeStates nodes(deformation);
             std::array<double, 27> around;
             std::vector<Vec3d> found;
@@ -521,7 +521,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         // sharp pass bridges from a dozen flipped nodes (one task for all of them took 1.8 ms of
         // the armadillo's 15 in that pass).
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, frontier.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
-            openvdb::tree::ValueAccessor<const openvdb::MaskTree, false> cells(*lattice.cells);
+            openvdb::tree::ValueAccessor<const CellTree, false> cells(*lattice.cells);
             NodeStates nodes(deformation);
             std::vector<Vec3d> found;
             double block[125], around[27];

@@ -21,7 +21,7 @@ using openvdb::CoordBBox;
 
 namespace {
 
-using MaskLeaf = openvdb::MaskTree::LeafNodeType;
+using MaskLeaf = CellTree::LeafNodeType;
 
 constexpr int kLeafDim = 8;
 constexpr int kBlockNodes = kLeafDim + 1;
@@ -129,8 +129,8 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     Lattice lat;
     lat.frame = frame;
     lat.cellRange = cellRange;
-    lat.cells = std::make_shared<openvdb::MaskTree>(false);
-    lat.cellsWithoutData = std::make_shared<openvdb::MaskTree>(false);
+    lat.cells = std::make_shared<CellTree>(false);
+    lat.cellsWithoutData = std::make_shared<CellTree>(false);
     LatticeStats& st = lat.stats;
 
     // Top-down over VDB node sizes: 4096^3, 128^3, then 8^3 leaf blocks. The root has no bounds

@@ -1,13 +1,12 @@
 // Lattice: the cells of a uniform lattice of spacing h that may hold surface, as the active
-// voxels of an OpenVDB mask tree in lattice index space (voxel (i,j,k) = cell (i,j,k)). Found
+// voxels of a sparse OpenVDB mask tree (sparse_tree.h) in lattice index space (voxel (i,j,k) = cell (i,j,k)). Found
 // top-down from the field's conservative bounds, one VDB node at a time: a node (4096^3, 128^3 or
 // 8^3 cells) whose bounds do not straddle the iso value is skipped whole, so work grows with
 // the surface, never with the bounding box.
 #pragma once
 #include "vdbsurf/core/lattice_frame.h"
 #include "vdbsurf/field/field.h"
-
-#include <openvdb/openvdb.h>
+#include "vdbsurf/vdb/sparse_tree.h"
 
 #include <cstdint>
 
@@ -28,11 +27,11 @@ struct LatticeStats {
 struct Lattice {
     LatticeFrame frame;
     openvdb::CoordBBox cellRange;   // cells considered (from the field's domain)
-    openvdb::MaskTree::Ptr cells;   // active voxel = cell that may hold surface
+    CellTree::Ptr cells;           // active voxel = cell that may hold surface
     // Active cells whose every value is what the field calls no data (Field::dropCellsWithoutData):
     // they stay in `cells`, which must hold the owner of every edge a meshed cell crosses, and
     // their polygons are left out of the mesh.
-    openvdb::MaskTree::Ptr cellsWithoutData;
+    CellTree::Ptr cellsWithoutData;
     LatticeStats stats;
 };
 
