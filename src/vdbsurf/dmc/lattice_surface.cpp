@@ -115,14 +115,19 @@ struct VertexRef {
 // those of its +x, +y, +z neighbours, whose first layer closes the leaf's 9^3 node block.
 inline Coord nodeBlock(const Coord& origin, int d) { return origin.offsetBy(8 * (d & 1), 8 * ((d >> 1) & 1), 8 * ((d >> 2) & 1)); }
 
-// Is a node of the leaf at `origin` active in the tree behind `acc`? One probe per block (a
-// missing leaf under an inactive tile holds none) instead of one per node.
+// Is a node of the leaf at `origin` active in the tree behind `acc`? One probe per leaf of that
+// tree the 9^3 nodes touch (a missing leaf under an inactive tile holds none) instead of one per
+// node; the tree's leaves may be smaller than the lattice's (OffsetTree).
 template <typename Accessor>
 bool anyActiveNode(Accessor& acc, const Coord& origin) {
-    for (int d = 0; d < 8; ++d) {
-        const Coord lo = nodeBlock(origin, d);
-        if (acc.probeConstLeaf(lo) || acc.isValueOn(lo)) return true;
-    }
+    constexpr int kStep = int(Accessor::TreeType::LeafNodeType::DIM);
+    static_assert(8 % kStep == 0, "leaves of the node trees tile the lattice's 8^3 blocks");
+    for (int z = 0; z <= 8; z += kStep)
+        for (int y = 0; y <= 8; y += kStep)
+            for (int x = 0; x <= 8; x += kStep) {
+                const Coord lo = origin.offsetBy(x, y, z);
+                if (acc.probeConstLeaf(lo) || acc.isValueOn(lo)) return true;
+            }
     return false;
 }
 
