@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstring>
 #include <memory>
 #include <stdexcept>
 #include <tuple>
@@ -349,16 +350,22 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
     if (!offsetsInPlace) grown.resize(keptPolygons + 1, 0);
     std::uint32_t* offsets = offsetsInPlace ? mesh.offsets.data() : grown.data();
     std::uint32_t* indices = mesh.indices.data();
+    // The vertex numbers first, where they stand, in parallel (a candidate's own are overwritten
+    // by its loops below); then the runs between candidates only move, serially.
+    forEachChunk(mesh.indices.size(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t j = b; j < e; ++j) indices[j] = newId[indices[j]];
+    });
     fromCandidates.clear();
     std::size_t f = 0, i = 0;        // output: polygons and indices written
     std::uint32_t runStart = 0;      // input: the first index of the polygon read next
     auto copyRun = [&](std::size_t f0, std::size_t f1) { // input polygons [f0, f1)
-        for (std::size_t g = f0; g < f1; ++g) {
-            const std::uint32_t end = mesh.offsets[g + 1]; // (read before offsets[f + 1] <= it is written)
-            for (std::uint32_t j = runStart; j < end; ++j) indices[i++] = newId[indices[j]];
-            runStart = end;
-            offsets[++f] = std::uint32_t(i);
-        }
+        if (f1 <= f0) return;
+        const std::uint32_t end = mesh.offsets[f1]; // (read before offsets[f + 1] <= it is written)
+        const std::uint32_t shift = std::uint32_t(i) - runStart; // (mod 2^32: i <= runStart)
+        if (i != runStart) std::memmove(indices + i, indices + runStart, (end - runStart) * sizeof(std::uint32_t));
+        i += end - runStart;
+        runStart = end;
+        for (std::size_t g = f0; g < f1; ++g) offsets[++f] = mesh.offsets[g + 1] + shift; // (f + 1 <= g + 1)
     };
     std::size_t next = 0;
     for (std::size_t k = 0; k < candidates.size(); ++k) {
