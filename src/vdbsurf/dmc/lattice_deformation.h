@@ -4,7 +4,7 @@
 // takes the iso value itself but keeps the side it had before it moved (insideOnSurface), so
 // the cell cases, and with them the mesh's topology, do not change: only the crossings on its
 // edges move onto it. Sparse VDB trees in lattice node index space (with small internal nodes:
-// see SparseNodeTree); --lattice-out writes the offsets as a standard Vec3f grid.
+// vdb/sparse_tree.h); --lattice-out writes the offsets as a standard Vec3f grid.
 #pragma once
 #include "vdbsurf/core/lattice_frame.h"
 #include "vdbsurf/vdb/sparse_tree.h"

@@ -1,6 +1,6 @@
 // Lattice: the cells of a uniform lattice of spacing h that may hold surface, as the active
-// voxels of a sparse OpenVDB mask tree (sparse_tree.h) in lattice index space (voxel (i,j,k) = cell (i,j,k)). Found
-// top-down from the field's conservative bounds, one VDB node at a time: a node (4096^3, 128^3 or
+// voxels of a sparse OpenVDB mask tree (vdb/sparse_tree.h) in lattice index space (voxel
+// (i,j,k) = cell (i,j,k)). Found top-down from the field's conservative bounds, one VDB node at a time: a node (4096^3, 128^3 or
 // 8^3 cells) whose bounds do not straddle the iso value is skipped whole, so work grows with
 // the surface, never with the bounding box.
 #pragma once

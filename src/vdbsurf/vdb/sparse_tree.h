@@ -3,7 +3,7 @@
 // 4096^3 octant and a 16^3-entry node per 128^3 block that holds a single cell: 256 KB and 32 KB
 // of fresh memory, which a new process pays for a page fault at a time. A lattice around the
 // origin (most scanned and modelled data) touches all eight octants: 2 MB for the armadillo's
-// mask of cells, as much as its 150 k cells' mesh arrays; the deformation's offsets of its 2,200
+// mask of cells, a third of what its mesh's arrays take; the deformation's offsets of its 2,200
 // feature nodes took 8.8 MB. Internal nodes of 8^3 entries at both levels cover the same index
 // space with far less; the leaves are OpenVDB's usual 8^3.
 #pragma once
