@@ -538,9 +538,14 @@ private:
         forEachLeafPart(base, base.offsetBy(dims.x, dims.y, dims.z), [&](const Coord& leafOrigin, const Coord& lo, const Coord& hi) {
             if (const LeafT* leaf = acc.probeConstLeaf(leafOrigin)) {
                 const auto* data = leaf->buffer().data();
+                // A row along x at a time: x strides the leaf's buffer by 64, the output by 1.
+                const int n = hi.x() - lo.x();
                 for (int z = lo.z(); z < hi.z(); ++z)
-                    for (int y = lo.y(); y < hi.y(); ++y)
-                        for (int x = lo.x(); x < hi.x(); ++x) at(x, y, z) = OutT(data[((x & 7) << 6) | ((y & 7) << 3) | (z & 7)]);
+                    for (int y = lo.y(); y < hi.y(); ++y) {
+                        OutT* row = &at(lo.x(), y, z);
+                        const auto* column = data + (((lo.x() & 7) << 6) | ((y & 7) << 3) | (z & 7));
+                        for (int i = 0; i < n; ++i) row[i] = OutT(column[i << 6]);
+                    }
             } else {
                 const OutT v = OutT(acc.getValue(leafOrigin));
                 for (int z = lo.z(); z < hi.z(); ++z)
