@@ -130,7 +130,6 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     lat.frame = frame;
     lat.cellRange = cellRange;
     lat.cells = std::make_shared<CellTree>(false);
-    lat.cellsWithoutData = std::make_shared<CellTree>(false);
     LatticeStats& st = lat.stats;
 
     // Top-down over VDB node sizes: 4096^3, 128^3, then 8^3 leaf blocks. The root has no bounds
@@ -151,7 +150,8 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     // Where a cell's bounds are its corners' range (or bounds are not wanted) the corner values decide.
     const bool cornersExact = test == CellTest::CornerSigns || field.cellBoundsAreCornerRange(frame);
     const Inside side = field.inside();
-    std::vector<std::unique_ptr<MaskLeaf>> leaves(blocks.size()), withoutData(blocks.size());
+    std::vector<std::unique_ptr<MaskLeaf>> leaves(blocks.size());
+    std::vector<std::uint32_t> withoutData(blocks.size(), 0); // active cells without data, per block
     std::vector<std::int64_t> nanAt(blocks.size(), -1);
     std::vector<std::uint32_t> cellsExamined(blocks.size(), 0);
     Progress progress("lattice", blocks.size(), cancel);
@@ -227,15 +227,10 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             }
             std::array<std::uint64_t, kLeafDim> withData = words;
             field.dropCellsWithoutData(frame, toVec(o), withData.data());
-            MaskLeaf::NodeMaskType mask, noData;
+            MaskLeaf::NodeMaskType mask;
             for (int x = 0; x < kLeafDim; ++x) {
                 mask.template getWord<std::uint64_t>(openvdb::Index(x)) = words[std::size_t(x)];
-                noData.template getWord<std::uint64_t>(openvdb::Index(x)) = words[std::size_t(x)] & ~withData[std::size_t(x)];
-            }
-            if (!noData.isOff()) {
-                auto leaf = std::make_unique<MaskLeaf>(o, false);
-                leaf->setValueMask(noData);
-                withoutData[bi] = std::move(leaf);
+                withoutData[bi] += std::uint32_t(__builtin_popcountll(words[std::size_t(x)] & ~withData[std::size_t(x)]));
             }
             cellsExamined[bi] = examined;
             if (!mask.isOff()) {
@@ -276,10 +271,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     }
     for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
         st.cellsExamined += cellsExamined[bi];
-        if (withoutData[bi]) {
-            st.cellsWithoutData += withoutData[bi]->onVoxelCount();
-            lat.cellsWithoutData->addLeaf(withoutData[bi].release());
-        }
+        st.cellsWithoutData += withoutData[bi];
         if (!leaves[bi]) continue;
         st.cellsActive += leaves[bi]->onVoxelCount();
         lat.cells->addLeaf(leaves[bi].release());

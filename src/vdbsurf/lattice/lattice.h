@@ -20,7 +20,10 @@ struct LatticeStats {
     std::uint64_t leafBlocksVisited = 0; // 8^3 blocks whose cells were examined one by one
     std::uint64_t cellsExamined = 0;
     std::uint64_t cellsActive = 0;
-    std::uint64_t cellsWithoutData = 0; // active cells whose values are all the field's fill
+    // Active cells whose every value is what the field calls no data (Field::dropCellsWithoutData):
+    // they stay among the cells, which must hold the owner of every edge a meshed cell crosses,
+    // and when there are any the mesher leaves out the polygons on no data.
+    std::uint64_t cellsWithoutData = 0;
     double seconds = 0;
 };
 
@@ -28,10 +31,6 @@ struct Lattice {
     LatticeFrame frame;
     openvdb::CoordBBox cellRange;   // cells considered (from the field's domain)
     CellTree::Ptr cells;           // active voxel = cell that may hold surface
-    // Active cells whose every value is what the field calls no data (Field::dropCellsWithoutData):
-    // they stay in `cells`, which must hold the owner of every edge a meshed cell crosses, and
-    // their polygons are left out of the mesh.
-    CellTree::Ptr cellsWithoutData;
     LatticeStats stats;
 };
 
@@ -50,8 +49,8 @@ constexpr double kMeshBytesPerActiveCell = 128;
 
 // Active cells: those whose corner values change side (so that every edge with a sign change has
 // its owning cell active, whatever the rounding of the bounds), plus, with CellTest::Bounds, those
-// whose bounds straddle iso; the ones among them without data also go to cellsWithoutData. Blocks
-// above the cells are always culled by their bounds. Throws Error naming the field where a node
+// whose bounds straddle iso; those among them without data are counted (stats.cellsWithoutData).
+// Blocks above the cells are always culled by their bounds. Throws Error naming the field where a node
 // value is NaN, and Error naming "--voxel-size" as soon as the cells found would need more than
 // memoryLimit bytes to mesh (kMeshBytesPerActiveCell each; 0: 80 % of the memory free when it
 // starts) — past it the kernel would kill the process.
