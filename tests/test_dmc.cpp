@@ -694,6 +694,50 @@ TEST_CASE("a notch's node the thin search moved into a wall's wedge is not left 
     CHECK(countComponents(dmc) == 1);
 }
 
+TEST_CASE("a notch about a cell deep is not filled flush with the face: its one outside node keeps what its edges show") {
+    // Found at random (notches 0.7-1.3 cells deep), each with one node inside the notch. The sharp
+    // pass placed that node on the notch's rim (a corner there, or where a concave edge meets the
+    // face), which took the crossings on its edges to the notch's far walls with it; or it bridged
+    // that node into the solid, to join a node flipped onto the rim. Either way the mesh ran flush
+    // over the notch: no vertex nearer its concave corner than the notch is deep.
+    struct Case {
+        double ax, ay, az, cx, cy, cz, notch, h;
+    };
+    const Case c = GENERATE(Case{0.22188617899870569, 0.10433864832106152, 4.7960855773015139, 0.097909546871289277,
+                                 -0.091165942032968211, -0.072111633266245562, 0.39966163060270066, 0.33683549034438287},
+                            Case{3.5806453778803031, 1.5891083479567809, 6.0669518293158857, -0.03949589567811676,
+                                 -0.092393818341086925, 0.03516126262695568, 0.33824703145608059, 0.26141860659464816},
+                            Case{2.8684064472329638, 2.3968698837056155, 2.7960337472675709, -0.018209795369945811,
+                                 0.021405013937063871, -0.066648736958443089, 0.20248334457764694, 0.26422531144620548});
+    const NotchedCube shape{eulerRotation(c.ax, c.ay, c.az), Vec3d(c.cx, c.cy, c.cz), c.notch};
+    const Mesh dmc = meshFormula(shape.formula(), kNotchBox, c.h);
+    const Mesh mc = meshFormula(shape.formula(), kNotchBox, c.h, MeshMethod::MarchingCubes);
+    // The notch's three walls, 12 x 12 points each.
+    const double k = 1 - c.notch;
+    std::vector<Vec3d> walls;
+    for (int axis = 0; axis < 3; ++axis)
+        for (int a = 0; a < 12; ++a)
+            for (int b = 0; b < 12; ++b) {
+                Vec3d q(k, k, k);
+                q[std::size_t((axis + 1) % 3)] += c.notch * (a + 0.5) / 12;
+                q[std::size_t((axis + 2) % 3)] += c.notch * (b + 0.5) / 12;
+                walls.push_back(shape.world(q));
+            }
+    auto meanDistance = [&](const Mesh& m) {
+        const MeshDistance d(m, c.h);
+        double sum = 0;
+        for (const Vec3d& p : walls) sum += d.distance(p, 3 * c.h);
+        return sum / double(walls.size()) / c.h;
+    };
+    const double corner = nearestVertex(dmc, shape.concaveCorner()) / c.h, dmcWalls = meanDistance(dmc), mcWalls = meanDistance(mc);
+    INFO("notch " << c.notch / c.h << " H deep: nearest vertex to its concave corner " << corner << " H; walls' mean distance to the mesh dmc "
+                  << dmcWalls << " H, mc " << mcWalls << " H");
+    requireClosed(dmc);
+    CHECK(countComponents(dmc) == 1);
+    CHECK(corner < 0.6);
+    CHECK(dmcWalls <= mcWalls + 0.01);
+}
+
 TEST_CASE("a part within a cell of the domain's edge gives a closed mesh: nodes on the lattice's outer faces keep their side") {
     // The cells beyond the lattice's outer nodes are not meshed, so a node there moved into a part
     // (by the thin search, bridging or the hidden-edge phase) left the mesh open along the

@@ -46,6 +46,11 @@ constexpr double kMaxSurfaceDistance = 0.2;
 // surface. Where the surface is merely curved (noisy fog, a rounded blob) the tangent planes meet
 // off the surface and the segment's midpoint strays from it by more than this (in cells).
 constexpr double kMaxFaceBend = 0.1;
+// A node placed on a feature takes the crossings of its edges with it: each must lie on a face
+// through the feature's point, its tangent plane within this share of a cell (or of its distance
+// to the point, if farther) of the point. Curved faces stray ~0.1-0.2 (a cylinder's rim 4 cells
+// around); a notch's far wall strays by the notch's depth.
+constexpr double kCollapseBend = 0.3;
 // On flat faces every crossing's normal is one of the faces' normals; on a curved surface the
 // normals fan out between them. A crossing whose normal is farther than this (cosine) from every
 // plane that defined the feature means curvature, not a feature.
@@ -563,18 +568,63 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     all.erase(std::unique(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), all.end());
     std::stable_sort(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.kind < y.kind; });
 
-    // The field's side at each proposal's six neighbours does not depend on the order below:
-    // sampled first, in parallel (bit k: neighbour k of kNeighbours is inside).
     constexpr int kNeighbours[6] = {4, 10, 12, 14, 16, 22}; // in the 3^3 block around the node
-    auto sampleNeighbours = [&](const std::vector<Proposal>& proposals) {
+    // Placed on its feature, a node carries the crossings of its edges to the other side: they
+    // move onto the feature's point, and the surface runs from the point to the crossings around.
+    // That is the feature only where each of those crossings lies on a face through the point (its
+    // tangent plane passes the point). A crossing on another face is a part of the shape the node
+    // alone stands for: a notch about a cell deep whose one outside node reaches the notch's rim
+    // (a corner there, or where a concave edge meets the face) took the notch's far walls with it
+    // onto the rim, and the mesh ran flush over the notch. Decided on the lattice as the thin
+    // search left it (`around`: the values at rest of the 27 nodes around the proposal's node).
+    const bool linearEdges = field.edgesAreLinear(frame);
+    auto crossingsOnFeatureFaces = [&](const Proposal& p, const double* around, const OffsetAccessor& moved) {
+        // Node c (27-block index k) where it stands, and its value there.
+        auto position = [&](const Coord& c, int k, double& value, bool& atRest) {
+            openvdb::Vec3f o;
+            const Vec3d rest = frame.nodeWorld(Vec3i(c.x(), c.y(), c.z()));
+            atRest = !moved.probeValue(c, o);
+            if (atRest) return value = around[k], rest;
+            const Vec3d at = rest + Vec3d(o.x(), o.y(), o.z());
+            value = field.value(at);
+            return at;
+        };
+        double va = 0;
+        bool aAtRest = true;
+        const Vec3d a = position(p.node, 13, va, aAtRest);
+        const bool aInside = isInside(va, iso, side);
+        for (int j = 0; j < 6; ++j) {
+            const int k = kNeighbours[j];
+            double vb = 0;
+            bool bAtRest = true;
+            const Vec3d b = position(p.node.offsetBy(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1), k, vb, bAtRest);
+            if (isInside(vb, iso, side) == aInside) continue;
+            // Along an undeformed edge of a grid at its voxel size the field is linear (the
+            // surface finds its crossings there so).
+            const double t = linearEdges && aAtRest && bAtRest ? (iso - va) / (vb - va) : field.edgeCrossing(a, b, va, vb, iso);
+            const Vec3d c = a + (b - a) * t;
+            const Vec3d g = field.gradient(c);
+            const double len = length(g);
+            if (!(len > 0) || !std::isfinite(len)) continue;
+            if (std::fabs(dot(g, p.point - c)) / len > kCollapseBend * std::max(h, length(p.point - c))) return false;
+        }
+        return true;
+    };
+    // The field's side at each proposal's six neighbours does not depend on the order below:
+    // sampled first, in parallel (bit k: neighbour k of kNeighbours is inside). With `keepsFaces`,
+    // whether the proposal passes crossingsOnFeatureFaces too.
+    auto sampleNeighbours = [&](const std::vector<Proposal>& proposals, std::vector<std::uint8_t>* keepsFaces) {
         std::vector<std::uint8_t> bits(proposals.size(), 0);
+        if (keepsFaces) keepsFaces->assign(proposals.size(), 1);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
+            OffsetAccessor moved(*deformation.offsets);
             double around[27];
             for (std::size_t i = r.begin(); i < r.end(); ++i) {
                 const Coord& n = proposals[i].node;
                 field.sampleNodes(frame, Vec3i(n.x() - 1, n.y() - 1, n.z() - 1), {3, 3, 3}, nullptr, around);
                 for (int j = 0; j < 6; ++j)
                     if (isInside(around[kNeighbours[j]], iso, side)) bits[i] |= std::uint8_t(1u << j);
+                if (keepsFaces) (*keepsFaces)[i] = crossingsOnFeatureFaces(proposals[i], around, moved);
             }
         });
         if (options.cancel) options.cancel->check();
@@ -614,7 +664,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return otherSide;
     };
 
-    const std::vector<std::uint8_t> insideNeighbours = sampleNeighbours(all);
+    std::vector<std::uint8_t> keepsFaces;
+    const std::vector<std::uint8_t> insideNeighbours = sampleNeighbours(all, &keepsFaces);
     std::vector<Vec3i> flipped;
     // Where the thin search had put a flipped node (into a crack, off a thin part): a flip that is
     // undone goes back there, not to rest, where it is on the other side (at a crack's rim, a node
@@ -625,7 +676,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         const Proposal& p = all[i];
         bool sharesCrossing = false;
         const int otherSide = neighbourSides(p, insideNeighbours[i], sharesCrossing);
-        if (otherSide == 6 || sharesCrossing) {
+        if (otherSide == 6 || sharesCrossing || !keepsFaces[i]) {
             ++out.rejected;
             continue;
         }
@@ -644,6 +695,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         to.iso = iso;
         to.steps = options.searchSteps;
         to.cancel = options.cancel;
+        to.keepFeatureNodes = options.edgeThreshold;
         out.changedNodes = flipped;
         out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped, nullptr, &out.changedNodes);
         std::vector<Vec3i> bridged = out.changedNodes;
@@ -774,7 +826,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             if (keep[i]) along[kept++] = along[i];
         along.resize(kept);
     }
-    const std::vector<std::uint8_t> alongNeighbours = sampleNeighbours(along);
+    const std::vector<std::uint8_t> alongNeighbours = sampleNeighbours(along, nullptr);
     for (std::size_t i = 0; i < along.size(); ++i) {
         bool sharesCrossing = false;
         const int otherSide = neighbourSides(along[i], alongNeighbours[i], sharesCrossing);

@@ -503,6 +503,36 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     std::vector<Coord> frontier;
     for (const Vec3i& v : from) frontier.emplace_back(v.x, v.y, v.z);
     std::uint64_t bridged = 0;
+    // Does node c (at rest, on side `inside`) stand where faces of its side meet, by the normals
+    // where its edges cross to neighbours at rest on the other side (a moved neighbour's crossing
+    // may lie on an edge, where the gradient is neither face's)? Then it is what the lattice has
+    // of that edge or corner: the only outside node of a notch about a cell deep lies between its
+    // walls, and bridged into the solid beside it (to join a node flipped onto the notch's rim)
+    // it took the notch with it.
+    auto standsAtFeature = [&](const Coord& c, bool inside, NodeStates& nodes, std::uint64_t& evaluated) {
+        if (!(options.keepFeatureNodes > -1)) return false;
+        const Vec3d a = frame.nodeWorld(Vec3i(c.x(), c.y(), c.z()));
+        const double va = field.value(a);
+        Vec3d normals[6];
+        int count = 0;
+        evaluated += 1;
+        for (int k = 0; k < 6; ++k) {
+            const Coord m = c + axisStep(k / 2, k % 2 ? 1 : -1);
+            if (nodes.offsets.isValueOn(m)) continue;
+            const Vec3d b = frame.nodeWorld(Vec3i(m.x(), m.y(), m.z()));
+            const double vb = field.value(b);
+            evaluated += 1;
+            if (isInside(vb, iso, side) == inside || isInside(va, iso, side) != inside) continue;
+            const Vec3d g = field.gradient(a + (b - a) * field.edgeCrossing(a, b, va, vb, iso));
+            const double len = length(g);
+            if (!(len > 0) || !std::isfinite(len)) continue;
+            normals[count++] = g / len;
+        }
+        for (int i = 0; i < count; ++i)
+            for (int j = i + 1; j < count; ++j)
+                if (dot(normals[i], normals[j]) < options.keepFeatureNodes) return true;
+        return false;
+    };
     // Phase 2, bridging: marching cubes never joins two inside nodes across the diagonal of a
     // face, nor two nodes of one side across a cell's diagonal. Where nodes of a thin part (moved
     // or not) meet like that and the part does join them (the segment between them stays on
@@ -571,6 +601,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                         const Coord d = n - p;
                         const bool restInside = isInside(rest(d.x(), d.y(), d.z()), iso, side);
                         if (!edgeRuns.moveEffect(n, restInside, to, nodes, examined, evaluated).keeps) return;
+                        if (standsAtFeature(n, restInside, nodes, evaluated)) return;
                         bestDistance = dist, best = Bridge{n, off};
                     };
                     std::vector<Vec3i> unmoved;

@@ -33,6 +33,10 @@ struct LatticeDeformation;
 struct ThinSearchOptions {
     double iso = 0;
     int steps = 5; // k: parts at least h/k wide are found
+    // Bridging only (the sharp pass's, after flips): a node whose edges to the other side cross
+    // faces meeting at an edge (two crossings' normals below this cosine) is not moved across.
+    // -1: every node may move.
+    double keepFeatureNodes = -1;
     const CancelToken* cancel = nullptr;
 };
 
