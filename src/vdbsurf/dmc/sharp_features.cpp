@@ -603,10 +603,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             // surface finds its crossings there so).
             const double t = linearEdges && aAtRest && bAtRest ? (iso - va) / (vb - va) : field.edgeCrossing(a, b, va, vb, iso);
             const Vec3d c = a + (b - a) * t;
+            const double reach = kCollapseBend * std::max(h, length(p.point - c));
+            if (length(p.point - c) <= reach) continue; // no plane through c can miss the point by more
             const Vec3d g = field.gradient(c);
             const double len = length(g);
             if (!(len > 0) || !std::isfinite(len)) continue;
-            if (std::fabs(dot(g, p.point - c)) / len > kCollapseBend * std::max(h, length(p.point - c))) return false;
+            if (std::fabs(dot(g, p.point - c)) / len > reach) return false;
         }
         return true;
     };
