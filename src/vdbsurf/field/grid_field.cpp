@@ -155,9 +155,18 @@ public:
         }
     }
 
+    // Central differences of the trilinear interpolant half a voxel either side, mapped to world
+    // space through the inverse Jacobian transpose: valueAndGradient's, which reads the 3x3x3
+    // voxels once (six BoxSampler samples read 48 through a fresh accessor: twice the time,
+    // 0.55-0.68 against 0.25-0.32 µs near the armadillo's surface).
     Vec3d gradient(const Vec3d& p) const override {
-        // Central differences of the trilinear interpolant half a voxel either side, mapped to
-        // world space through the inverse Jacobian transpose.
+        Vec3d g;
+        valueAndGradient(p, g);
+        return g;
+    }
+
+    // The same by six BoxSampler samples, where rounding takes ip +- 0.5 out of that block.
+    Vec3d sampledGradient(const Vec3d& p) const {
         Acc acc(mTree);
         const openvdb::Vec3d ip = worldToIndex(p);
         openvdb::Vec3d g;
@@ -171,9 +180,9 @@ public:
     }
 
     double valueAndGradient(const Vec3d& p, Vec3d& gradient) const override {
-        // The value and the six samples of gradient() read the 3x3x3 voxels from
+        // The value and the six samples of sampledGradient() read the 3x3x3 voxels from
         // floor(ip - 0.5): fetched once, then interpolated as BoxSampler does (same arithmetic,
-        // so the results are value()'s and gradient()'s bit for bit).
+        // so the results are value()'s and sampledGradient()'s bit for bit).
         using ValueT = typename TreeT::ValueType;
         const openvdb::Vec3d ip = worldToIndex(p);
         const Coord base(int(std::floor(ip.x() - 0.5)), int(std::floor(ip.y() - 0.5)), int(std::floor(ip.z() - 0.5)));
@@ -186,7 +195,7 @@ public:
             const Coord d = corner[s] - base;
             // Rounding of ip +- 0.5 can step outside the block: the plain calls are exact there.
             if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() > 1 || d.y() > 1 || d.z() > 1) {
-                gradient = this->gradient(p);
+                gradient = sampledGradient(p);
                 return value(p);
             }
         }
