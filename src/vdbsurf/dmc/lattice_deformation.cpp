@@ -36,7 +36,8 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     xform->postTranslate(openvdb::Vec3d(lattice.frame.origin.x, lattice.frame.origin.y, lattice.frame.origin.z));
 
     // Nodes of active cells: the cells dilated by one towards +x, +y, +z.
-    openvdb::MaskTree nodes = *toStandardMaskTree(*lattice.cells);
+    const openvdb::MaskTree::Ptr cellMask = toStandardMaskTree(*lattice.cells);
+    openvdb::MaskTree nodes(*cellMask);
     {
         openvdb::MaskTree shifted(false);
         for (auto it = lattice.cells->cbeginValueOn(); it; ++it)
@@ -51,7 +52,7 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     offsets->setVectorType(openvdb::VEC_CONTRAVARIANT_ABSOLUTE);
     offsets->setTransform(xform);
     auto cells = openvdb::MaskGrid::create(false);
-    cells->setTree(toStandardMaskTree(*lattice.cells));
+    cells->setTree(cellMask);
     cells->setName("cells");
     // A cell's voxel sits at its min-corner node: the same index space as the nodes.
     cells->setTransform(xform->copy());

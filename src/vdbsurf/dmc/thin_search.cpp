@@ -513,16 +513,17 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         if (!(options.keepFeatureNodes > -1)) return false;
         const Vec3d a = frame.nodeWorld(Vec3i(c.x(), c.y(), c.z()));
         const double va = field.value(a);
+        evaluated += 1;
+        if (isInside(va, iso, side) != inside) return false;
         Vec3d normals[6];
         int count = 0;
-        evaluated += 1;
         for (int k = 0; k < 6; ++k) {
             const Coord m = c + axisStep(k / 2, k % 2 ? 1 : -1);
             if (nodes.offsets.isValueOn(m)) continue;
             const Vec3d b = frame.nodeWorld(Vec3i(m.x(), m.y(), m.z()));
             const double vb = field.value(b);
             evaluated += 1;
-            if (isInside(vb, iso, side) == inside || isInside(va, iso, side) != inside) continue;
+            if (isInside(vb, iso, side) == inside) continue;
             const Vec3d g = field.gradient(a + (b - a) * field.edgeCrossing(a, b, va, vb, iso));
             const double len = length(g);
             if (!(len > 0) || !std::isfinite(len)) continue;
