@@ -30,10 +30,11 @@ void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
 }
 
 void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
-                     const std::map<std::string, std::string>& metadata) {
+                     const std::map<std::string, std::string>& metadata, const AffineMap* frameToWorld) {
     initializeOpenVdb();
     auto xform = voxelTransform(lattice.frame.h, path);
     xform->postTranslate(openvdb::Vec3d(lattice.frame.origin.x, lattice.frame.origin.y, lattice.frame.origin.z));
+    if (frameToWorld) xform = affineTransform(*frameToWorld, lattice.frame, path);
 
     // Nodes of active cells: the cells dilated by one towards +x, +y, +z.
     const openvdb::MaskTree::Ptr cellMask = toStandardMaskTree(*lattice.cells);
@@ -47,7 +48,14 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     auto offsets = openvdb::Vec3SGrid::create(openvdb::Vec3f(0.0f));
     offsets->tree().topologyUnion(nodes);
     auto acc = offsets->getAccessor();
-    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) acc.setValue(it.getCoord(), *it);
+    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
+        if (!frameToWorld) {
+            acc.setValue(it.getCoord(), *it);
+            continue;
+        }
+        const Vec3d w = frameToWorld->linear(Vec3d(it->x(), it->y(), it->z()));
+        acc.setValue(it.getCoord(), openvdb::Vec3f(float(w.x), float(w.y), float(w.z)));
+    }
     offsets->setName("offsets");
     offsets->setVectorType(openvdb::VEC_CONTRAVARIANT_ABSOLUTE);
     offsets->setTransform(xform);

@@ -9,6 +9,7 @@
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
+#include <algorithm>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -40,6 +41,20 @@ const char* methodName(MeshMethod m) {
 }
 
 Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& report) {
+    if (const OwnFrame* own = field.ownFrame()) {
+        MeshRequest inFrame = request;
+        if (request.deformedLattice)
+            inFrame.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const AffineMap*) {
+                request.deformedLattice(lattice, deformation, &own->toWorld);
+            };
+        Mesh mesh = meshField(*own->field, inFrame, report);
+        report.frameToWorld = own->toWorld;
+        for (Vec3f& p : mesh.points) p = Vec3f(own->toWorld.apply(Vec3d(p)));
+        if (own->toWorld.mirrors())
+            for (std::size_t f = 0; f < mesh.polygonCount(); ++f)
+                std::reverse(mesh.indices.begin() + mesh.offsets[f], mesh.indices.begin() + mesh.offsets[f + 1]);
+        return mesh;
+    }
     if (request.iso) {
         if (!std::isfinite(*request.iso)) throw Error("--iso", "must be a finite number");
         report.iso = *request.iso;
@@ -153,7 +168,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.nodesFlipped = ss.flipped;
         report.secondsSharp = ss.seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
     }
-    if (request.deformedLattice) request.deformedLattice(lattice, deformation);
+    if (request.deformedLattice) request.deformedLattice(lattice, deformation, nullptr);
     // The fit refines marching cubes' polygons before the crossings at nodes are welded, so that
     // the weld sees every edge the mesh will have.
     std::function<void(Mesh&, const std::vector<std::uint32_t>&)> fitBeforeWeld;

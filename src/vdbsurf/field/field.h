@@ -4,6 +4,7 @@
 // density scene. Bounds are what make sparsity honest: a box whose bounds do not straddle the iso
 // value cannot hold surface and is never visited.
 #pragma once
+#include "vdbsurf/core/affine_map.h"
 #include "vdbsurf/core/lattice_frame.h"
 #include "vdbsurf/core/vec3.h"
 
@@ -11,6 +12,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -52,6 +54,19 @@ inline bool mayBeOtherSide(bool inside, const Interval& b, double iso, Inside si
     return otherAbove ? b.hi + tol >= iso : b.lo - tol <= iso;
 }
 
+class Field;
+
+// A field whose samples lie on a lattice that world axes do not follow (a grid whose transform
+// rotates, mirrors, shears or scales its axes unequally) is meshed in that lattice's own frame,
+// where its samples are the nodes of an axis-aligned lattice, and the mesh is then mapped to
+// world (meshField): the nodes sit on the voxels, as volumeToMesh's do. Meshed on a world-axis
+// lattice instead, a rotated grid's cube came out farther from its own surface than
+// volumeToMesh's (F at H/4 0.993 against 1.000) and three times slower.
+struct OwnFrame {
+    std::shared_ptr<const Field> field; // the same values, in frame coordinates
+    AffineMap toWorld;                  // frame coordinates -> world
+};
+
 class Field {
 public:
     virtual ~Field() = default;
@@ -81,6 +96,8 @@ public:
     virtual std::optional<double> naturalSpacing() const { return std::nullopt; }
     // Where lattice nodes should sit for spacing h (a grid's voxel centres when h is a multiple).
     virtual LatticeFrame naturalFrame(double h) const { return {domain().min, h}; }
+    // The frame to mesh in where it is not world space (see OwnFrame); null: world space.
+    virtual const OwnFrame* ownFrame() const { return nullptr; }
 
     // Values at the nodes first + (i, j, k), 0 <= i < dims.x ..., x fastest. Only nodes whose
     // needed[] entry is non-zero must be filled (needed may be null: all). Fields override this

@@ -1,6 +1,7 @@
 #include "vdbsurf/field/grid_field.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/vdb/voxel_transform.h"
 
 #include <openvdb/openvdb.h>
 #include <openvdb/tools/Interpolation.h>
@@ -57,6 +58,7 @@ struct GridField::Impl {
     virtual Box3 domain() const = 0;
     virtual Interval valueRange() const = 0;
     virtual double voxelSize() const = 0;
+    virtual bool axisAligned() const = 0;
     virtual LatticeFrame naturalFrame(double h) const = 0;
     virtual void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
                              const std::uint8_t* needed, double* out) const = 0;
@@ -112,6 +114,7 @@ public:
 
     GridBaseCPtr grid() const override { return mGrid; }
     double voxelSize() const override { return mVoxel; }
+    bool axisAligned() const override { return mAxisAligned; }
     Interval valueRange() const override { return {mAll.lo, mAll.hi}; }
     Box3 domain() const override { return mDomain; }
 
@@ -858,6 +861,19 @@ GridField::GridField(GridBaseCPtr grid, std::string label, std::optional<Inside>
     if (inside) {
         mInside = *inside;
         mInsideReason = *inside == Inside::Below ? "inside below the iso value (--inside below)" : "inside above the iso value (--inside above)";
+    }
+    if (!mImpl->axisAligned()) {
+        // The same tree under a uniform scale: frame point p is index point p / s.
+        const double s = mImpl->voxelSize();
+        const GridBaseCPtr framed = grid->copyGridReplacingTransform(voxelTransform(s, mLabel));
+        const openvdb::Mat4d m = grid->transform().baseMap()->getAffineMap()->getConstMat4();
+        auto own = std::make_unique<OwnFrame>();
+        own->field = std::make_shared<GridField>(framed, mLabel, mInside);
+        // OpenVDB's matrices act on row vectors: world = index * m.
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) own->toWorld.a[r][c] = m(c, r) / s;
+        own->toWorld.t = Vec3d(m(3, 0), m(3, 1), m(3, 2));
+        mOwnFrame = std::move(own);
     }
 }
 

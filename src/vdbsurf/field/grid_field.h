@@ -29,6 +29,10 @@ public:
     std::string describe() const override { return mLabel; }
     std::optional<double> naturalSpacing() const override;
     LatticeFrame naturalFrame(double h) const override;
+    // Where the grid's axes are not world's (rotated, mirrored, sheared or unequal voxels): the
+    // grid in index space scaled by its smallest voxel size, so that a lattice at that spacing
+    // is its voxels, and the map back to world.
+    const OwnFrame* ownFrame() const override { return mOwnFrame.get(); }
     void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
                      double* out) const override;
     bool cellBoundsAreCornerRange(const LatticeFrame& frame) const override;
@@ -48,6 +52,7 @@ public:
 
 private:
     std::unique_ptr<Impl> mImpl;
+    std::unique_ptr<OwnFrame> mOwnFrame;
     std::string mLabel, mClass, mInsideReason;
     Inside mInside = Inside::Below;
 };

@@ -65,7 +65,8 @@ CompareReport compareMeshers(const GridField& field, const CompareRequest& reque
     }
 
     const bool ownLattice = !request.voxelSize;
-    PeerMesh peer = volumeToMeshPeer(field.grid(), report.iso, ownLattice ? nullptr : &mcReport.frame);
+    PeerMesh peer = volumeToMeshPeer(field.grid(), report.iso, ownLattice ? nullptr : &mcReport.frame,
+                                     mcReport.frameToWorld ? &*mcReport.frameToWorld : nullptr);
     report.resampled = peer.resampled;
     if (request.cancel) request.cancel->check();
 

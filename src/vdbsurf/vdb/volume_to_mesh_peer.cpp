@@ -17,33 +17,37 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-bool sameLattice(const openvdb::math::Transform& xform, const LatticeFrame& frame) {
-    if (!xform.isLinear()) return false;
-    const openvdb::Vec3d o = xform.indexToWorld(openvdb::Vec3d(0, 0, 0));
-    const openvdb::Vec3d dx = xform.indexToWorld(openvdb::Vec3d(1, 0, 0)) - o;
-    const openvdb::Vec3d dy = xform.indexToWorld(openvdb::Vec3d(0, 1, 0)) - o;
-    const openvdb::Vec3d dz = xform.indexToWorld(openvdb::Vec3d(0, 0, 1)) - o;
-    const double tol = 1e-9 * frame.h;
-    if ((dx - openvdb::Vec3d(frame.h, 0, 0)).length() > tol || (dy - openvdb::Vec3d(0, frame.h, 0)).length() > tol ||
-        (dz - openvdb::Vec3d(0, 0, frame.h)).length() > tol)
-        return false;
-    // The frame's origin must be a voxel centre of the grid.
-    const openvdb::Vec3d idx = xform.worldToIndex(openvdb::Vec3d(frame.origin.x, frame.origin.y, frame.origin.z));
-    for (int a = 0; a < 3; ++a)
-        if (std::fabs(idx[a] - std::nearbyint(idx[a])) > 1e-6) return false;
+// Do the two transforms put every voxel centre of `a` on one of `b`'s, with the same steps?
+bool sameLattice(const openvdb::math::Transform& a, const openvdb::math::Transform& b) {
+    if (!a.isLinear() || !b.isLinear()) return false;
+    const openvdb::Vec3d o = b.indexToWorld(openvdb::Vec3d(0, 0, 0));
+    const double tol = 1e-9 * b.voxelSize().length();
+    for (int axis = 0; axis < 3; ++axis) {
+        openvdb::Vec3d e(0, 0, 0);
+        e[axis] = 1;
+        if (((a.indexToWorld(e) - a.indexToWorld(openvdb::Vec3d(0, 0, 0))) - (b.indexToWorld(e) - o)).length() > tol) return false;
+    }
+    const openvdb::Vec3d idx = a.worldToIndex(o);
+    for (int i = 0; i < 3; ++i)
+        if (std::fabs(idx[i] - std::nearbyint(idx[i])) > 1e-6) return false;
     return true;
 }
 
 template <typename GridT>
-PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame) {
+PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame, const AffineMap* frameToWorld) {
     PeerMesh out;
     typename GridT::ConstPtr grid = openvdb::ConstPtrCast<const GridT>(input.copy());
-    if (frame && !sameLattice(input.transform(), *frame)) {
+    std::shared_ptr<openvdb::math::Transform> xform;
+    if (frame && frameToWorld) {
+        xform = affineTransform(*frameToWorld, *frame, "--voxel-size");
+    } else if (frame) {
+        xform = voxelTransform(frame->h, "--voxel-size");
+        xform->postTranslate(openvdb::Vec3d(frame->origin.x, frame->origin.y, frame->origin.z));
+    }
+    if (xform && !sameLattice(input.transform(), *xform)) {
         const auto t0 = Clock::now();
         auto target = GridT::create(input.background());
         target->setGridClass(input.getGridClass());
-        auto xform = voxelTransform(frame->h, "--voxel-size");
-        xform->postTranslate(openvdb::Vec3d(frame->origin.x, frame->origin.y, frame->origin.z));
         target->setTransform(xform);
         openvdb::tools::resampleToMatch<openvdb::tools::BoxSampler>(input, *target);
         grid = target;
@@ -69,9 +73,9 @@ PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame) {
 
 } // namespace
 
-PeerMesh volumeToMeshPeer(const GridBaseCPtr& grid, double iso, const LatticeFrame* frame) {
-    if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) return run(*f, iso, frame);
-    if (auto d = openvdb::GridBase::constGrid<openvdb::DoubleGrid>(grid)) return run(*d, iso, frame);
+PeerMesh volumeToMeshPeer(const GridBaseCPtr& grid, double iso, const LatticeFrame* frame, const AffineMap* frameToWorld) {
+    if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) return run(*f, iso, frame, frameToWorld);
+    if (auto d = openvdb::GridBase::constGrid<openvdb::DoubleGrid>(grid)) return run(*d, iso, frame, frameToWorld);
     throw Error(grid ? grid->getName() : "grid", "volumeToMesh needs a float or double grid");
 }
 

@@ -18,4 +18,19 @@ std::shared_ptr<openvdb::math::Transform> voxelTransform(double voxelSize, const
     return openvdb::math::Transform::createLinearTransform(voxelSize);
 }
 
+std::shared_ptr<openvdb::math::Transform> affineTransform(const AffineMap& toWorld, const LatticeFrame& frame, const std::string& what) {
+    voxelTransform(frame.h, what); // the lattice's own spacing must be storable
+    const double smallest = 3.0 * openvdb::math::Tolerance<double>::value();
+    const double det = toWorld.determinant() * frame.h * frame.h * frame.h;
+    if (!(std::fabs(det) >= smallest) || !std::isfinite(det))
+        throw Error(what, "the lattice's voxels (volume " + messageNumber(std::fabs(det)) + ") cannot be stored in a .vdb grid");
+    // World = index * m for OpenVDB's row vectors: node i sits at toWorld(origin + h i).
+    openvdb::Mat4d m = openvdb::Mat4d::identity();
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) m(c, r) = toWorld.a[r][c] * frame.h;
+    const Vec3d o = toWorld.apply(frame.origin);
+    m.setTranslation(openvdb::Vec3d(o.x, o.y, o.z));
+    return openvdb::math::Transform::createLinearTransform(m);
+}
+
 } // namespace vdbsurf
