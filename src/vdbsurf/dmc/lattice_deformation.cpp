@@ -32,13 +32,7 @@ void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
 void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
                      const std::map<std::string, std::string>& metadata, const AffineMap* frameToWorld) {
     initializeOpenVdb();
-    std::shared_ptr<openvdb::math::Transform> xform;
-    if (frameToWorld) {
-        xform = affineTransform(*frameToWorld, lattice.frame, path);
-    } else {
-        xform = voxelTransform(lattice.frame.h, path);
-        xform->postTranslate(openvdb::Vec3d(lattice.frame.origin.x, lattice.frame.origin.y, lattice.frame.origin.z));
-    }
+    const auto xform = latticeTransform(lattice.frame, frameToWorld, path);
 
     // Nodes of active cells: the cells dilated by one towards +x, +y, +z.
     const openvdb::MaskTree::Ptr cellMask = toStandardMaskTree(*lattice.cells);

@@ -37,13 +37,7 @@ template <typename GridT>
 PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame, const AffineMap* frameToWorld) {
     PeerMesh out;
     typename GridT::ConstPtr grid = openvdb::ConstPtrCast<const GridT>(input.copy());
-    std::shared_ptr<openvdb::math::Transform> xform;
-    if (frame && frameToWorld) {
-        xform = affineTransform(*frameToWorld, *frame, "--voxel-size");
-    } else if (frame) {
-        xform = voxelTransform(frame->h, "--voxel-size");
-        xform->postTranslate(openvdb::Vec3d(frame->origin.x, frame->origin.y, frame->origin.z));
-    }
+    const auto xform = frame ? latticeTransform(*frame, frameToWorld, "--voxel-size") : nullptr;
     if (xform && !sameLattice(input.transform(), *xform)) {
         const auto t0 = Clock::now();
         auto target = GridT::create(input.background());

@@ -16,8 +16,8 @@ namespace vdbsurf {
 std::shared_ptr<openvdb::math::Transform> voxelTransform(double voxelSize, const std::string& what);
 
 // The transform whose voxel (i, j, k) is the lattice node `frame` puts at (i, j, k), mapped to
-// world by `toWorld`: a lattice in a field's own frame (a rotated grid's), as world sees it.
-// Throws Error naming `what` when OpenVDB cannot store it (voxels too small).
-std::shared_ptr<openvdb::math::Transform> affineTransform(const AffineMap& toWorld, const LatticeFrame& frame, const std::string& what);
+// world by `toWorld` where not null (a lattice in a field's own frame, a rotated grid's, as world
+// sees it). Throws Error naming `what` when OpenVDB cannot store it (voxels too small).
+std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const AffineMap* toWorld, const std::string& what);
 
 } // namespace vdbsurf
