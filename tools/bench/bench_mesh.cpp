@@ -1,7 +1,8 @@
 // bench_mesh: vdbsurf's marching cubes against OpenVDB's volumeToMesh (adaptivity 0) on the same
 // grid, iso value and thread count, in one run: seconds (median of --repeat), peak memory added,
-// vertices, polygons. Cases: level-set spheres of about 0.2 M, 3 M and 12 M active voxels, and
-// the scalar grids of ../shared/data/vdb when present.
+// vertices, polygons. The methods run in turn within each round (bench::measureInterleaved) and
+// ratios are the median of each round's ratio. Cases: level-set spheres of about 0.2 M, 3 M and
+// 12 M active voxels, and the scalar grids of ../shared/data/vdb when present.
 #include "bench_support.h"
 
 #include "vdbsurf/core/threads.h"
@@ -81,53 +82,56 @@ int main(int argc, char** argv) {
         std::vector<openvdb::Vec3s> points;
         std::vector<openvdb::Vec3I> tris;
         std::vector<openvdb::Vec4I> quads;
-        auto runReference = [&] {
-            return bench::measureMedian(repeat, [&] {
-                points.clear();
-                tris.clear();
-                quads.clear();
-                openvdb::tools::volumeToMesh(*grid, points, tris, quads, iso, 0.0);
-            });
-        };
-        // volumeToMesh's own speed-up on this machine, beside DMC's: a 2-thread target is only as
-        // good as the machine's cores, which these shared VMs do not always give in full.
-        double refOneThread = 0;
-        if (limit.threads() > 1) {
-            ThreadLimit one(1);
-            refOneThread = runReference().seconds;
-        }
-        const bench::Measure ref = runReference();
-        const double refSpeedup = refOneThread > 0 ? refOneThread / ref.seconds : 0;
-        const std::size_t refPolys = tris.size() + quads.size(), refVerts = points.size();
-        points = {};
-        tris = {};
-        quads = {};
-
-        auto runOurs = [&](MeshMethod method, std::size_t& verts, std::size_t& polys) {
-            return bench::measureMedian(repeat, [&] {
-                GridField field(c.grid, c.name);
-                MeshRequest req;
-                req.iso = iso;
-                req.method = method;
-                MeshReport rep;
-                const Mesh m = meshField(field, req, rep);
-                verts = m.points.size();
-                polys = m.polygonCount();
-            });
+        std::size_t refPolys = 0, refVerts = 0;
+        auto reference = [&] {
+            points.clear();
+            tris.clear();
+            quads.clear();
+            openvdb::tools::volumeToMesh(*grid, points, tris, quads, iso, 0.0);
+            refPolys = tris.size() + quads.size();
+            refVerts = points.size();
+            // Released here so that the next run's peak does not sit on this one's arrays.
+            points = {};
+            tris = {};
+            quads = {};
         };
         std::size_t mcVerts = 0, mcPolys = 0, dmcVerts = 0, dmcPolys = 0;
-        const bench::Measure mc = runOurs(MeshMethod::MarchingCubes, mcVerts, mcPolys);
-        const bench::Measure dmc = runOurs(MeshMethod::Dmc, dmcVerts, dmcPolys);
-        // DMC's own speed-up: the same run on one thread (when more are in use).
-        double dmcSpeedup = 0;
+        auto ours = [&](MeshMethod method, std::size_t& verts, std::size_t& polys) {
+            GridField field(c.grid, c.name);
+            MeshRequest req;
+            req.iso = iso;
+            req.method = method;
+            MeshReport rep;
+            const Mesh m = meshField(field, req, rep);
+            verts = m.points.size();
+            polys = m.polygonCount();
+        };
+        auto oneThread = [](const std::function<void()>& fn) {
+            return [fn] {
+                ThreadLimit one(1);
+                fn();
+            };
+        };
+        enum { kRef, kMc, kDmc, kRefOne, kDmcOne };
+        std::vector<std::function<void()>> runs{reference, [&] { ours(MeshMethod::MarchingCubes, mcVerts, mcPolys); },
+                                                [&] { ours(MeshMethod::Dmc, dmcVerts, dmcPolys); }};
+        // volumeToMesh's own speed-up on this machine, beside DMC's: a 2-thread target is only as
+        // good as the machine's cores, which these shared VMs do not always give in full.
         if (limit.threads() > 1) {
-            ThreadLimit one(1);
-            std::size_t v1 = 0, p1 = 0;
-            dmcSpeedup = runOurs(MeshMethod::Dmc, v1, p1).seconds / dmc.seconds;
+            runs.push_back(oneThread(reference));
+            runs.push_back(oneThread([&] {
+                std::size_t v1 = 0, p1 = 0;
+                ours(MeshMethod::Dmc, v1, p1);
+            }));
         }
+        const bench::Interleaved t = bench::measureInterleaved(repeat, runs);
+        const bool speedups = runs.size() > kRefOne;
 
-        auto row = [&](const std::string& method, const bench::Measure& m, std::size_t v, std::size_t p, double speedup) {
-            const double ratio = m.seconds / ref.seconds;
+        // Ratios round by round (bench::Interleaved), their median.
+        auto row = [&](const std::string& method, int run, int oneThreadRun, std::size_t v, std::size_t p) {
+            const bench::Measure& m = t.medians[run];
+            const double ratio = t.medianRatio(run, kRef);
+            const double speedup = speedups && oneThreadRun >= 0 ? t.medianRatio(oneThreadRun, run) : 0;
             nlohmann::json record{{"case", c.name}, {"active_voxels", active}, {"iso", iso}, {"method", method}, {"seconds", m.seconds},
                                   {"peak_mib", m.peakMiB}, {"vertices", v}, {"polygons", p}, {"threads", limit.threads()},
                                   {"time_ratio_vs_volumeToMesh", ratio}};
@@ -136,11 +140,12 @@ int main(int argc, char** argv) {
                        std::to_string(v), std::to_string(p), bench::fixed(ratio, 2), speedup > 0 ? bench::fixed(speedup, 2) : "-"},
                       record);
         };
-        row("volumeToMesh", ref, refVerts, refPolys, refSpeedup);
-        row("vdbsurf mc", mc, mcVerts, mcPolys, 0);
-        row("vdbsurf dmc", dmc, dmcVerts, dmcPolys, dmcSpeedup);
+        row("volumeToMesh", kRef, kRefOne, refVerts, refPolys);
+        row("vdbsurf mc", kMc, -1, mcVerts, mcPolys);
+        row("vdbsurf dmc", kDmc, kDmcOne, dmcVerts, dmcPolys);
     }
-    std::cout << "bench_mesh: " << limit.threads() << " threads, median of " << repeat << " runs\n";
+    std::cout << "bench_mesh: " << limit.threads() << " threads, median of " << repeat
+              << " rounds (each method once a round, in turn; ratios are the median of the rounds' ratios)\n";
     table.print();
     if (!json.empty()) table.writeJson(json, "bench_mesh", {{"threads", limit.threads()}, {"repeat", repeat}});
     return 0;

@@ -52,6 +52,35 @@ Measure measureMedian(int repeat, const std::function<void()>& fn) {
     return {times[times.size() / 2], peak};
 }
 
+namespace {
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
+} // namespace
+
+Interleaved measureInterleaved(int repeat, const std::vector<std::function<void()>>& fns) {
+    Interleaved out;
+    out.medians.resize(fns.size());
+    out.seconds.resize(fns.size());
+    for (int round = 0; round < std::max(1, repeat); ++round)
+        for (std::size_t f = 0; f < fns.size(); ++f) {
+            const Measure m = measure(fns[f]);
+            out.seconds[f].push_back(m.seconds);
+            out.medians[f].peakMiB = std::max(out.medians[f].peakMiB, m.peakMiB);
+        }
+    for (std::size_t f = 0; f < fns.size(); ++f) out.medians[f].seconds = median(out.seconds[f]);
+    return out;
+}
+
+double Interleaved::medianRatio(std::size_t a, std::size_t b) const {
+    std::vector<double> ratios;
+    for (std::size_t r = 0; r < seconds[a].size(); ++r) ratios.push_back(seconds[a][r] / seconds[b][r]);
+    return median(ratios);
+}
+
 std::string sharedData(const std::string& relative) {
     const std::filesystem::path p = std::filesystem::path(VDBSURF_SOURCE_DIR) / ".." / "shared" / "data" / relative;
     return std::filesystem::exists(p) ? p.lexically_normal().string() : std::string();

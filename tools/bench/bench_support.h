@@ -20,6 +20,17 @@ Measure measure(const std::function<void()>& fn);
 // Runs fn `repeat` times; the median time and the largest peak.
 Measure measureMedian(int repeat, const std::function<void()>& fn);
 
+// Runs each of fns once a round for `repeat` rounds, so that the drift of a shared machine (its
+// neighbours come and go within seconds) falls on every function alike, not on whichever ran
+// in the slower stretch. Ratios are then taken round by round.
+struct Interleaved {
+    std::vector<Measure> medians;              // per function: median time, largest peak
+    std::vector<std::vector<double>> seconds; // [function][round]
+    // The median over rounds of seconds[a][r] / seconds[b][r].
+    double medianRatio(std::size_t a, std::size_t b) const;
+};
+Interleaved measureInterleaved(int repeat, const std::vector<std::function<void()>>& fns);
+
 // ../shared/data/<relative> seen from the source tree, or "" when absent.
 std::string sharedData(const std::string& relative);
 
