@@ -52,15 +52,16 @@ int main(int argc, char** argv) {
         const int maxLevels = quick ? 2 : (mesh.polygonCount() > 100000 ? 2 : 4);
         for (int levels = 1; levels <= maxLevels; ++levels) {
             std::size_t osdFaces = 0, ourFaces = 0;
-            const bench::Measure osd = bench::measureMedian(repeat, [&] {
-                osdFaces = reference::catmullClark(mesh, levels).offsets.size() - 1;
-            });
-            const bench::Measure ours = bench::measureMedian(repeat, [&] {
-                Sqrt2Subdivider s(mesh, path);
-                for (int i = 0; i < 2 * levels; ++i) s.step();
-                ourFaces = s.faceCount();
-            });
-            const double ratio = ours.seconds / osd.seconds;
+            // In turn, once a round; the ratio is the median of the rounds' (bench::Interleaved).
+            const bench::Interleaved t = bench::measureInterleaved(
+                repeat, {[&] { osdFaces = reference::catmullClark(mesh, levels).offsets.size() - 1; },
+                         [&] {
+                             Sqrt2Subdivider s(mesh, path);
+                             for (int i = 0; i < 2 * levels; ++i) s.step();
+                             ourFaces = s.faceCount();
+                         }});
+            const bench::Measure &osd = t.medians[0], &ours = t.medians[1];
+            const double ratio = t.medianRatio(1, 0);
             table.add({name, std::to_string(mesh.polygonCount()), "OpenSubdiv Far", std::to_string(levels), std::to_string(osdFaces),
                        bench::fixed(osd.seconds, 4), "1"},
                       {{"mesh", name}, {"method", "osd"}, {"levels", levels}, {"faces", osdFaces}, {"seconds", osd.seconds}});
