@@ -98,7 +98,8 @@ int main(int argc, char** argv) {
                   {{"mesh", name}, {"method", "sqrt2_view"}, {"front_depth", vo.frontDepth}, {"silhouette_depth", vo.silhouetteDepth},
                    {"faces", viewFaces}, {"seconds", view.seconds}});
     }
-    std::cout << "bench_subdiv: vdbsurf on " << limit.threads() << " threads (OpenSubdiv Far serial), median of " << repeat << " runs\n";
+    std::cout << "bench_subdiv: vdbsurf on " << limit.threads() << " threads (OpenSubdiv Far serial), median of " << repeat
+              << " rounds (the two in turn, once a round; ratios are the median of the rounds' ratios)\n";
     table.print();
     if (!json.empty()) table.writeJson(json, "bench_subdiv", {{"repeat", repeat}, {"threads", limit.threads()}});
     return 0;
