@@ -83,11 +83,7 @@ void editAgainstRebuild(bench::Table& table, const DensityScene& before, const D
         editTimes.push_back(editStats.seconds);
         ratios.push_back(rebuild.seconds / editStats.seconds);
     }
-    auto median = [](std::vector<double> v) {
-        std::sort(v.begin(), v.end());
-        return v[v.size() / 2];
-    };
-    const double rebuild = median(rebuildTimes), edit = median(editTimes), speedup = median(ratios);
+    const double rebuild = bench::median(rebuildTimes), edit = bench::median(editTimes), speedup = bench::median(ratios);
     const std::string mode = surfaceOnly ? ", surface only" : "";
     const RasterStats& r = rebuildStats;
     const RasterStats& e = editStats;

@@ -40,6 +40,11 @@ Measure measure(const std::function<void()>& fn) {
     return m;
 }
 
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
 Measure measureMedian(int repeat, const std::function<void()>& fn) {
     std::vector<double> times;
     double peak = 0;
@@ -48,18 +53,8 @@ Measure measureMedian(int repeat, const std::function<void()>& fn) {
         times.push_back(m.seconds);
         peak = std::max(peak, m.peakMiB);
     }
-    std::sort(times.begin(), times.end());
-    return {times[times.size() / 2], peak};
+    return {median(times), peak};
 }
-
-namespace {
-
-double median(std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-}
-
-} // namespace
 
 Interleaved measureInterleaved(int repeat, const std::vector<std::function<void()>>& fns) {
     Interleaved out;

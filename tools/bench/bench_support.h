@@ -17,6 +17,9 @@ struct Measure {
 };
 Measure measure(const std::function<void()>& fn);
 
+// The middle value (the upper of the two middle ones for an even count); v must not be empty.
+double median(std::vector<double> v);
+
 // Runs fn `repeat` times; the median time and the largest peak.
 Measure measureMedian(int repeat, const std::function<void()>& fn);
 
