@@ -9,12 +9,6 @@ namespace {
 constexpr double kDegree = 3.14159265358979323846 / 180.0;
 }
 
-double falloffValue(double t) {
-    if (t <= 0) return 1.0;
-    if (t >= 1) return 0.0;
-    return 1.0 - t * t * (3.0 - 2.0 * t);
-}
-
 double falloffSlope(double t) {
     if (t <= 0 || t >= 1) return 0.0;
     return -6.0 * t * (1.0 - t);
@@ -174,10 +168,9 @@ bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
     return distanceLowerBound(scaledRadius(toLocal(p))) >= mP.falloff;
 }
 
-double PreparedPrimitive::density(const Vec3d& p) const {
-    if (!mInfluence.contains(p)) return 0.0;
+double PreparedPrimitive::densityOfOtherCores(const Vec3d& p) const {
     double d;
-    if (mP.core == CoreShape::Ellipsoid && !mSphere) {
+    if (mP.core == CoreShape::Ellipsoid) {
         // The hot path of rasterization: the core and far tests before the root, on one toLocal.
         const Vec3d q = toLocal(p);
         const double u = scaledRadius(q);
@@ -186,7 +179,7 @@ double PreparedPrimitive::density(const Vec3d& p) const {
         Vec3d closest;
         d = ellipsoidDistance(mP.size, q, closest);
     } else {
-        d = coreDistance(p); // spheres and boxes: the exact distance is as cheap as any test
+        d = coreDistance(p); // boxes: the exact distance is as cheap as any test
     }
     return mP.weight * falloffValue(d / mP.falloff);
 }

@@ -5,6 +5,7 @@
 #pragma once
 #include "vdbsurf/core/vec3.h"
 
+#include <algorithm>
 #include <string>
 
 namespace vdbsurf {
@@ -16,7 +17,12 @@ enum class DensityOp { Add, Subtract };
 // Hermite step is the lowest-degree polynomial with s(0) = 1, s(1) = 0 and zero slope at both
 // ends, so the density is C1 where the core ends and where the influence ends; and s(1/2) = 1/2,
 // so a lone primitive of weight 1 has its 0.5 surface exactly half the falloff outside its core.
-double falloffValue(double t);
+// Inline, as the density of a sphere is: those two are an edit's work at every voxel it corrects.
+inline double falloffValue(double t) {
+    if (t <= 0) return 1.0;
+    if (t >= 1) return 0.0;
+    return 1.0 - t * t * (3.0 - 2.0 * t);
+}
 double falloffSlope(double t); // ds/dt
 
 struct Primitive {
@@ -64,7 +70,11 @@ public:
     bool inCore(const Vec3d& p) const;
 
     // This primitive's own density (weight · s(d / falloff)), unsigned.
-    double density(const Vec3d& p) const;
+    double density(const Vec3d& p) const {
+        if (!mInfluence.contains(p)) return 0.0;
+        if (mSphere) return mP.weight * falloffValue(std::max(0.0, length(p - mP.center) - mP.size.x) / mP.falloff);
+        return densityOfOtherCores(p);
+    }
     Vec3d densityGradient(const Vec3d& p) const;
     // 0: outside the influence, 1: 0 < ρ < 0.5, 2: 0.5 ≤ ρ < weight, 3: the core (seed 003's areas).
     int area(const Vec3d& p) const;
@@ -94,6 +104,7 @@ public:
     const Box3& coreBox() const { return mCoreBox; }
 
 private:
+    double densityOfOtherCores(const Vec3d& p) const; // density() of boxes and ellipsoids other than spheres
     Vec3d toLocal(const Vec3d& p) const;
     Vec3d toWorld(const Vec3d& v) const;
     bool beyondFalloff(const Vec3d& p) const; // a cheap sufficient test for density 0

@@ -215,9 +215,8 @@ struct DensityRaster::Impl {
         // The sums an edit would need, only when they are kept (5 KB a leaf otherwise wasted).
         std::unique_ptr<LeafSums> out = options.keepSums ? std::make_unique<LeafSums>() : nullptr;
         bool any = false;
-        auto setExact = [&](const Coord& ijk) {
+        auto setExact = [&](openvdb::Index n, const Coord& ijk) {
             const Vec3d p = Vec3d(ijk.x(), ijk.y(), ijk.z()) * h();
-            const auto n = LeafT::coordToOffset(ijk);
             FixedDensity s;
             if (prev && prev->known[n]) {
                 s = prev->voxel[n];
@@ -234,12 +233,12 @@ struct DensityRaster::Impl {
             }
             const float v = float(clampDensity(fromFixed(s)));
             if (v > 0) {
-                leaf->setValueOn(ijk, v);
+                leaf->setValueOn(n, v);
                 any = true;
             }
         };
         if (!options.surfaceOnly) {
-            for (auto it = leaf->beginValueAll(); it; ++it) setExact(it.getCoord());
+            for (openvdb::Index n = 0; n < LeafT::SIZE; ++n) setExact(n, leaf->offsetToGlobalCoord(n));
         } else {
             // The leaf is cut into 4³ blocks, each decided from the scene's bounds over the block
             // grown by the halo, from one distance per primitive at its centre (over the ball
@@ -315,7 +314,7 @@ struct DensityRaster::Impl {
                                 for (int d = 0; d < kBlock; ++d, ++v) {
                                     const Coord ijk = b.offsetBy(a, c, d);
                                     const Fill g = decide(near[v]);
-                                    if (g == Fill::Exact) setExact(ijk);
+                                    if (g == Fill::Exact) setExact(LeafT::coordToOffset(ijk), ijk);
                                     else if (g == Fill::Full) {
                                         leaf->setValueOn(ijk, 1.0f);
                                         any = true;
