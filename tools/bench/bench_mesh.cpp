@@ -79,21 +79,15 @@ int main(int argc, char** argv) {
         }
         const std::uint64_t active = grid->activeVoxelCount();
 
-        std::vector<openvdb::Vec3s> points;
-        std::vector<openvdb::Vec3I> tris;
-        std::vector<openvdb::Vec4I> quads;
         std::size_t refPolys = 0, refVerts = 0;
         auto reference = [&] {
-            points.clear();
-            tris.clear();
-            quads.clear();
+            // Fresh arrays each run, freed at its end, as our meshes are.
+            std::vector<openvdb::Vec3s> points;
+            std::vector<openvdb::Vec3I> tris;
+            std::vector<openvdb::Vec4I> quads;
             openvdb::tools::volumeToMesh(*grid, points, tris, quads, iso, 0.0);
             refPolys = tris.size() + quads.size();
             refVerts = points.size();
-            // Released here so that the next run's peak does not sit on this one's arrays.
-            points = {};
-            tris = {};
-            quads = {};
         };
         std::size_t mcVerts = 0, mcPolys = 0, dmcVerts = 0, dmcPolys = 0;
         auto ours = [&](MeshMethod method, std::size_t& verts, std::size_t& polys) {
