@@ -36,8 +36,8 @@ struct MeshOptions {
     std::optional<double> iso, voxelSize;
     int threads = 0, searchSteps = 5;
     double sharpEdge = 0.9, sharpCorner = 0.7, sharpNoise = 0.95;
-    std::optional<double> fitTolerance;
-    bool triangles = false, noThin = false, noSharp = false, noFit = false;
+    std::optional<double> fitTolerance, simplifyTolerance;
+    bool triangles = false, noThin = false, noSharp = false, noFit = false, noSimplify = false;
 };
 
 void runMesh(const MeshOptions& o) {
@@ -54,14 +54,20 @@ void runMesh(const MeshOptions& o) {
     checkWritableTarget(o.output);
     if (!o.stats.empty()) checkWritableTarget(o.stats);
     const bool dmc = o.method == "dmc";
-    if (!dmc && (o.noThin || o.noSharp || o.noFit || o.fitTolerance || !o.latticeOut.empty()))
-        throw Error(o.noThin         ? "--no-thin"
-                    : o.noSharp      ? "--no-sharp"
-                    : o.noFit        ? "--no-fit"
-                    : o.fitTolerance ? "--fit-tolerance"
-                                     : "--lattice-out",
+    if (!dmc && (o.noThin || o.noSharp || o.noFit || o.fitTolerance || o.noSimplify || o.simplifyTolerance || !o.latticeOut.empty()))
+        throw Error(o.noThin              ? "--no-thin"
+                    : o.noSharp           ? "--no-sharp"
+                    : o.noFit             ? "--no-fit"
+                    : o.fitTolerance      ? "--fit-tolerance"
+                    : o.noSimplify        ? "--no-simplify"
+                    : o.simplifyTolerance ? "--simplify-tolerance"
+                                          : "--lattice-out",
                     "applies only to --method dmc");
     if (o.noFit && o.fitTolerance) throw Error("--fit-tolerance", "has no effect with --no-fit; give one or the other");
+    if (o.noSimplify && o.simplifyTolerance)
+        throw Error("--simplify-tolerance", "has no effect with --no-simplify; give one or the other");
+    if (o.noThin && (o.noSimplify || o.simplifyTolerance))
+        throw Error(o.noSimplify ? "--no-simplify" : "--simplify-tolerance", "applies to thin parts, which --no-thin does not search for");
     if (!o.latticeOut.empty()) {
         if (meshFormatOf(o.latticeOut) != MeshFormat::Vdb) throw Error(o.latticeOut, "--lattice-out must name a .vdb file");
         checkWritableTarget(o.latticeOut);
@@ -106,6 +112,8 @@ void runMesh(const MeshOptions& o) {
     req.sharp = !o.noSharp;
     req.fit = !o.noFit;
     if (o.fitTolerance) req.fitTolerance = *o.fitTolerance;
+    req.simplifyThin = !o.noSimplify;
+    if (o.simplifyTolerance) req.simplifyTolerance = *o.simplifyTolerance;
     req.searchSteps = o.searchSteps;
     req.sharpEdge = o.sharpEdge;
     req.sharpCorner = o.sharpCorner;
@@ -135,7 +143,10 @@ void runMesh(const MeshOptions& o) {
              (rep.fitEdgesSplit + rep.fitCentres > 0 ? "; fit: " + std::to_string(rep.fitEdgesSplit) + " edges split and " +
                                                            std::to_string(rep.fitCentres) + " centres added on the surface (" +
                                                            std::to_string(rep.fitFeatureCentres) + " on sharp edges or corners)"
-                                                     : std::string()));
+                                                     : std::string()) +
+             (rep.simplifyCollapses > 0 ? "; thin parts simplified: " + std::to_string(rep.simplifyCollapses) + " of their vertices removed (" +
+                                              std::to_string(rep.simplifyRegionTriangles) + " triangles there before)"
+                                        : std::string()));
 
     const auto tWrite = Clock::now();
     const std::vector<std::string> provenance = {
@@ -203,7 +214,10 @@ void runMesh(const MeshOptions& o) {
                            {"split_vertices", rep.splitVertices},
                            {"fit_edges_split", rep.fitEdgesSplit},
                            {"fit_centres", rep.fitCentres},
-                           {"fit_feature_centres", rep.fitFeatureCentres}}},
+                           {"fit_feature_centres", rep.fitFeatureCentres},
+                           {"simplify_thin", !o.noSimplify && !o.noThin && dmc},
+                           {"simplify_region_triangles", rep.simplifyRegionTriangles},
+                           {"simplify_collapses", rep.simplifyCollapses}}},
                          {"seconds",
                           {{"read", secondsRead},
                            {"lattice", rep.secondsLattice},
@@ -211,6 +225,7 @@ void runMesh(const MeshOptions& o) {
                            {"sharp_features", rep.secondsSharp},
                            {"mesh", rep.secondsMesh},
                            {"fit", rep.secondsFit},
+                           {"simplify", rep.secondsSimplify},
                            {"write", secondsWrite},
                            {"total", since(t0)}}}};
         writeJsonFile(o.stats, j);
@@ -246,6 +261,10 @@ Action addMeshCommand(CLI::App& app) {
     sub->add_flag("--no-fit", o->noFit, "DMC: add no vertices where the mesh strays from the surface");
     sub->add_option("--fit-tolerance", o->fitTolerance,
                     "DMC: cells an edge's or polygon's middle may stray from the surface before a vertex is added (default 0.2)")
+        ->check(CLI::Range(0.001, 1.0));
+    sub->add_flag("--no-simplify", o->noSimplify, "DMC: keep every polygon of thin parts (no edge collapses there)");
+    sub->add_option("--simplify-tolerance", o->simplifyTolerance,
+                    "DMC: cells the mesh of a thin part may move from the surface as its edges are collapsed (default 0.1)")
         ->check(CLI::Range(0.001, 1.0));
     sub->add_option("--lattice-out", o->latticeOut, "DMC: write the deformed lattice (Vec3f node offsets) to this .vdb");
     sub->add_option("--inside", o->inside, "Override which side is inside: below or above the iso value")

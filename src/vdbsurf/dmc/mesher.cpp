@@ -7,6 +7,7 @@
 #include "vdbsurf/dmc/sharp_features.h"
 #include "vdbsurf/dmc/surface_fit.h"
 #include "vdbsurf/dmc/thin_search.h"
+#include "vdbsurf/dmc/thin_simplify.h"
 #include "vdbsurf/lattice/lattice.h"
 
 #include <algorithm>
@@ -82,6 +83,9 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         throw Error("--sharp-noise", "must be a share of a leaf's surface cells in (0, 1], not " + messageNumber(request.sharpNoiseShare));
     if (fit && !(request.fitTolerance > 0 && request.fitTolerance <= 1))
         throw Error("--fit-tolerance", "must be a number of cells in (0, 1], not " + messageNumber(request.fitTolerance));
+    const bool simplify = dmc && request.thin && request.simplifyThin;
+    if (simplify && !(request.simplifyTolerance > 0 && request.simplifyTolerance <= 1))
+        throw Error("--simplify-tolerance", "must be a number of cells in (0, 1], not " + messageNumber(request.simplifyTolerance));
     const openvdb::CoordBBox range = latticeCellRange(field, report.frame);
     // DMC needs every cell the surface may pass, also those whose corners miss it.
     Lattice lattice = buildLattice(field, report.frame, range, report.iso,
@@ -100,9 +104,11 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     to.steps = request.searchSteps;
     to.cancel = request.cancel;
     std::vector<Vec3i> crowded; // for centring, the last move
+    std::vector<Vec3i> thinNodes; // moved or centred by the thin search, for the simplification
     auto centre = [&] {
         const auto t = std::chrono::steady_clock::now();
         std::vector<Vec3i> centred = centreThinParts(field, lattice, to, deformation, crowded, &report.thinSamples);
+        thinNodes.insert(thinNodes.end(), centred.begin(), centred.end());
         report.thinNodesCentred = centred.size();
         report.secondsThin += std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
         return centred;
@@ -111,6 +117,9 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         ThinSearchStats ts;
         thinSearch(field, lattice, to, deformation, &ts, &crowded);
         activateCellsAroundMovedNodes(lattice, deformation);
+        // (Before the sharp pass moves nodes of its own.)
+        for (auto it = deformation.offsets->cbeginValueOn(); it; ++it)
+            thinNodes.emplace_back(it.getCoord().x(), it.getCoord().y(), it.getCoord().z());
         report.hiddenCells = ts.hiddenCells;
         report.thinCandidates = ts.candidates;
         report.thinSamples = ts.samples;
@@ -200,6 +209,25 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         const std::size_t before = mesh.polygonCount();
         mesh = withoutPolygonsOffData(mesh, field);
         report.polygonsWithoutData = before - mesh.polygonCount();
+    }
+    if (simplify && !thinNodes.empty()) {
+        ThinSimplifyOptions tso;
+        tso.iso = report.iso;
+        tso.tolerance = request.simplifyTolerance;
+        tso.cancel = request.cancel;
+        ThinSimplifyStats tss;
+        // Where the nodes are now (the sharp pass may have moved some again).
+        std::vector<Vec3d> where;
+        where.reserve(thinNodes.size());
+        const openvdb::tree::ValueAccessor<const OffsetTree> offsets(*deformation.offsets);
+        for (const Vec3i& n : thinNodes) {
+            const openvdb::Vec3f o = offsets.getValue(openvdb::Coord(n.x, n.y, n.z));
+            where.push_back(report.frame.nodeWorld(n) + Vec3d(o.x(), o.y(), o.z()));
+        }
+        mesh = simplifyThinParts(field, report.frame, where, std::move(mesh), tso, &tss);
+        report.simplifyRegionTriangles = tss.regionTriangles;
+        report.simplifyCollapses = tss.collapses;
+        report.secondsSimplify = tss.seconds;
     }
 
     if (mesh.empty() && !request.allowEmpty) {

@@ -37,6 +37,11 @@ struct MeshRequest {
     // plain marching cubes.
     bool fit = true;
     double fitTolerance = 0.2;
+    // Collapse edges where the thin search moved nodes while the mesh stays within
+    // simplifyTolerance cells of the surface (dmc/thin_simplify): a wire thinner than a cell
+    // comes out as a tube of lattice-sized polygons otherwise.
+    bool simplifyThin = true;
+    double simplifyTolerance = 0.1;
     int searchSteps = 5;
     double sharpEdge = 0.9, sharpCorner = 0.7;
     // On a grid at its own voxel size, lattice leaves where at least this share of the surface
@@ -81,7 +86,8 @@ struct MeshReport {
     std::uint64_t nodesFlipped = 0; // sharp-feature nodes that changed side onto a tip (cases changed around them)
     std::uint64_t fitEdgesSplit = 0, fitCentres = 0; // vertices the surface fit added on edges and in polygons
     std::uint64_t fitFeatureCentres = 0;             // of the centres: on sharp edges and corners
-    double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0, secondsFit = 0;
+    std::uint64_t simplifyRegionTriangles = 0, simplifyCollapses = 0; // thin parts' triangles, vertices removed there
+    double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0, secondsFit = 0, secondsSimplify = 0;
     std::size_t vertices = 0, triangles = 0, quads = 0, otherPolygons = 0;
 };
 
