@@ -109,6 +109,30 @@ TEST_CASE("mesh writes OBJ, PLY and VDB, says what it chose, and writes stats") 
     INFO(e.output);
     CHECK(e.exitCode == 0);
     CHECK(test::fileExists(dir.path("e.obj")));
+
+    // A wire a third of a cell thick: its thin part simplified by default, every polygon kept
+    // with --no-simplify; the note and the stats say so.
+    const std::vector<std::string> wire = {"mesh", "--expr", "sqrt((y-0.013)^2+(z+0.021)^2)-0.015 + max(abs(x)-0.6, 0)",
+                                           "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1"};
+    auto withArgs = [&](std::vector<std::string> extra) {
+        std::vector<std::string> a = wire;
+        a.insert(a.end(), extra.begin(), extra.end());
+        return a;
+    };
+    const auto ws = runVdbsurf(withArgs({"-o", dir.path("wire.obj"), "--stats", dir.path("wire.json")}));
+    const auto wk = runVdbsurf(withArgs({"-o", dir.path("wire_all.obj"), "--no-simplify", "--stats", dir.path("wire_all.json")}));
+    INFO(ws.output << wk.output);
+    REQUIRE(ws.exitCode == 0);
+    REQUIRE(wk.exitCode == 0);
+    CHECK(ws.output.find("thin parts simplified") != std::string::npos);
+    CHECK(wk.output.find("thin parts simplified") == std::string::npos);
+    const auto sj = nlohmann::json::parse(test::readFile(dir.path("wire.json")));
+    const auto kj = nlohmann::json::parse(test::readFile(dir.path("wire_all.json")));
+    CHECK(sj["dmc"]["simplify_collapses"].get<long>() > 0);
+    CHECK(kj["dmc"]["simplify_collapses"].get<long>() == 0);
+    CHECK(kj["dmc"]["simplify_thin"] == false);
+    CHECK(sj["triangles"].get<long>() + 2 * sj["quads"].get<long>() < kj["triangles"].get<long>() + 2 * kj["quads"].get<long>());
+    CHECK(sj["seconds"].contains("simplify"));
 }
 
 TEST_CASE("the same input at 1 and 2 threads gives byte-identical files") {
@@ -298,6 +322,12 @@ TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "1e-5", "-o", out}, "--voxel-size", "too fine", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--iso", "7", "-o", out}, "good.vdb", "no surface", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--sharp-noise", "0", "-o", out}, "--sharp-noise", "(0, 1]", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--method", "mc", "--no-simplify", "-o", out}, "--no-simplify",
+                  "applies only to --method dmc", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--no-simplify", "--simplify-tolerance", "0.2", "-o", out},
+                  "--simplify-tolerance", "has no effect with --no-simplify", before);
+    expectFailure(dir, {"mesh", dir.path("good.vdb"), "--no-thin", "--simplify-tolerance", "0.2", "-o", out},
+                  "--simplify-tolerance", "--no-thin", before);
     expectFailure(dir, {"mesh", "--expr", "x^2 + * 2", "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1", "-o", out}, "--expr",
                   "column 7", before);
     expectFailure(dir, {"mesh", "--expr", "sqrt(x) - 0.5", "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1", "-o", out},
