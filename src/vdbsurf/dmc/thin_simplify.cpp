@@ -432,6 +432,10 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
         }
     }
     st.collapses = simplifier.run(options.cancel);
+    if (st.collapses == 0) {
+        st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        return mesh;
+    }
 
     // The mesh again, in polygon order: untouched polygons as they were, the rest as the
     // triangles left of them.
@@ -459,7 +463,7 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
             out.addPolygon({globalOf[tr.v[0]], globalOf[tr.v[1]], globalOf[tr.v[2]]});
         }
     }
-    if (st.collapses > 0) out = keepPolygons(out, std::vector<std::uint8_t>(out.polygonCount(), 1));
+    out = keepPolygons(out, std::vector<std::uint8_t>(out.polygonCount(), 1));
     st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return out;
 }
