@@ -16,14 +16,11 @@ namespace vdbsurf {
 
 namespace {
 
-constexpr std::int64_t kKeyHalf = std::int64_t(1) << 20; // cell coordinates within ±2^20 are marked
-
-bool keyable(std::int64_t x, std::int64_t y, std::int64_t z) {
-    return x > -kKeyHalf && x < kKeyHalf && y > -kKeyHalf && y < kKeyHalf && z > -kKeyHalf && z < kKeyHalf;
-}
-
+// A hash key for a cell: 21 bits a coordinate, wrapping (cells that share a key only share a
+// list of nodes, each of which is then measured).
 std::uint64_t cellKey(std::int64_t x, std::int64_t y, std::int64_t z) {
-    return (std::uint64_t(x + kKeyHalf) << 42) | (std::uint64_t(y + kKeyHalf) << 21) | std::uint64_t(z + kKeyHalf);
+    constexpr std::uint64_t kMask = 0x1fffff;
+    return ((std::uint64_t(x) & kMask) << 42) | ((std::uint64_t(y) & kMask) << 21) | (std::uint64_t(z) & kMask);
 }
 
 // Garland and Heckbert's error quadric: the sum of squared distances to a set of planes.
@@ -71,14 +68,17 @@ public:
 
     std::vector<Triangle> triangles;
     std::vector<Vec3d> pos;               // per local vertex (vertices never move)
-    std::vector<std::uint8_t> locked;     // per local vertex: may not be removed
-    std::vector<std::vector<std::uint32_t>> fan; // per local vertex: its live triangles
+    std::vector<std::uint8_t> locked;     // per local vertex: may not be removed (run() adds more)
     // Per local vertex: its neighbours along the edges of polygons outside the region (which
     // stay), so that the link condition sees every edge a collapse could double.
     std::vector<std::vector<std::uint32_t>> fixedNeighbours;
 
     std::uint64_t run(const CancelToken* cancel) {
         const std::size_t n = pos.size();
+        fan.assign(n, {});
+        for (std::uint32_t t = 0; t < triangles.size(); ++t)
+            for (std::uint32_t v : triangles[t].v) fan[v].push_back(t);
+        lockBordersAndPinches();
         mDead.assign(n, 0);
         mStamp.assign(n, 0);
         mRemoved.assign(triangles.size(), {});
@@ -103,6 +103,7 @@ public:
     }
 
 private:
+    std::vector<std::vector<std::uint32_t>> fan; // per local vertex: its live triangles
     const Field& mField;
     const double mIso, mTolerance, mTinyArea;
     std::vector<std::uint8_t> mDead;
@@ -120,6 +121,31 @@ private:
         out.insert(out.end(), fixedNeighbours[x].begin(), fixedNeighbours[x].end());
         std::sort(out.begin(), out.end());
         out.erase(std::unique(out.begin(), out.end()), out.end());
+    }
+
+    // A vertex on an edge that is not shared by exactly two region triangles (an open border,
+    // or a non-manifold edge), or whose triangles do not close one disk around it, stays.
+    void lockBordersAndPinches() {
+        std::vector<std::uint64_t> edges;
+        edges.reserve(triangles.size() * 3);
+        for (const Triangle& t : triangles)
+            for (int k = 0; k < 3; ++k) edges.push_back(undirectedEdgeKey(t.v[std::size_t(k)], t.v[std::size_t((k + 1) % 3)]));
+        std::sort(edges.begin(), edges.end());
+        for (std::size_t i = 0; i < edges.size();) {
+            std::size_t j = i;
+            while (j < edges.size() && edges[j] == edges[i]) ++j;
+            if (j - i != 2) {
+                locked[edges[i] >> 32] = 1;
+                locked[edges[i] & 0xffffffffu] = 1;
+            }
+            i = j;
+        }
+        for (std::uint32_t v = 0; v < pos.size(); ++v) {
+            if (locked[v]) continue;
+            neighbours(v, mScratch);
+            // A closed disk of k triangles has k neighbours; two disks at one vertex have more.
+            if (mScratch.size() != fan[v].size()) locked[v] = 1;
+        }
     }
 
     void pushAround(std::uint32_t u) {
@@ -295,14 +321,12 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
         for (std::int64_t z = z0; z <= z1; ++z)
             for (std::int64_t y = y0; y <= y1; ++y)
                 for (std::int64_t x = x0; x <= x1; ++x)
-                    if (keyable(x, y, z)) near[cellKey(x, y, z)].push_back(c);
+                    near[cellKey(x, y, z)].push_back(c);
     }
     std::vector<std::uint8_t> thinVertex(mesh.points.size());
     for (std::size_t i = 0; i < mesh.points.size(); ++i) {
         const Vec3d c = (Vec3d(mesh.points[i]) - frame.origin) / frame.h;
-        const double x = std::floor(c.x), y = std::floor(c.y), z = std::floor(c.z);
-        if (!(std::fabs(x) < double(kKeyHalf) && std::fabs(y) < double(kKeyHalf) && std::fabs(z) < double(kKeyHalf))) continue;
-        const auto it = near.find(cellKey(std::int64_t(x), std::int64_t(y), std::int64_t(z)));
+        const auto it = near.find(cellKey(std::int64_t(std::floor(c.x)), std::int64_t(std::floor(c.y)), std::int64_t(std::floor(c.z))));
         if (it == near.end()) continue;
         for (const Vec3d& n : it->second)
             if (std::fabs(c.x - n.x) <= kReach && std::fabs(c.y - n.y) <= kReach && std::fabs(c.z - n.z) <= kReach) {
@@ -390,47 +414,14 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
     }
 
     const std::size_t n = simplifier.pos.size();
-    simplifier.fan.assign(n, {});
     simplifier.fixedNeighbours.assign(n, {});
     for (const auto& [a, b] : fixedEdges) {
         simplifier.fixedNeighbours[a].push_back(b);
         simplifier.fixedNeighbours[b].push_back(a);
     }
     simplifier.locked.assign(n, 0);
-    for (std::uint32_t t = 0; t < simplifier.triangles.size(); ++t)
-        for (std::uint32_t v : simplifier.triangles[t].v) simplifier.fan[v].push_back(t);
     for (std::size_t g = 0; g < mesh.points.size(); ++g)
         if (localOf[g] != 0xffffffffu && outside[g]) simplifier.locked[localOf[g]] = 1;
-    // A vertex on an edge that is not shared by exactly two region triangles (an open border,
-    // or a non-manifold edge), or whose triangles do not close one disk around it, stays.
-    {
-        std::vector<std::uint64_t> edges;
-        edges.reserve(simplifier.triangles.size() * 3);
-        for (const Triangle& t : simplifier.triangles)
-            for (int k = 0; k < 3; ++k) edges.push_back(undirectedEdgeKey(t.v[std::size_t(k)], t.v[std::size_t((k + 1) % 3)]));
-        std::sort(edges.begin(), edges.end());
-        for (std::size_t i = 0; i < edges.size();) {
-            std::size_t j = i;
-            while (j < edges.size() && edges[j] == edges[i]) ++j;
-            if (j - i != 2) {
-                simplifier.locked[edges[i] >> 32] = 1;
-                simplifier.locked[edges[i] & 0xffffffffu] = 1;
-            }
-            i = j;
-        }
-        std::vector<std::uint32_t> nb;
-        for (std::uint32_t v = 0; v < n; ++v) {
-            if (simplifier.locked[v]) continue;
-            nb.clear();
-            for (std::uint32_t t : simplifier.fan[v])
-                for (std::uint32_t w : simplifier.triangles[t].v)
-                    if (w != v) nb.push_back(w);
-            std::sort(nb.begin(), nb.end());
-            nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
-            // A closed disk of k triangles has k neighbours; two disks at one vertex have more.
-            if (nb.size() != simplifier.fan[v].size()) simplifier.locked[v] = 1;
-        }
-    }
     st.collapses = simplifier.run(options.cancel);
     if (st.collapses == 0) {
         st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
