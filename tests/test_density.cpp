@@ -132,6 +132,61 @@ TEST_CASE("ellipsoid density against the closed form: axes, and the closest poin
     }
 }
 
+TEST_CASE("fixed-point terms round as llrint does, ties to even, up to the largest weight") {
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(0, 1);
+    std::size_t differ = 0;
+    for (int k = 0; k < 200000; ++k) {
+        const double d = k % 2 ? u(rng) : kMaxWeight * u(rng);
+        differ += toFixed(d) != std::llrint(d * kFixedPerUnit);
+        // Half way between two units, where llrint goes to the even one.
+        const double tie = (std::floor(d * kFixedPerUnit) + 0.5) / kFixedPerUnit;
+        differ += toFixed(tie) != std::llrint(tie * kFixedPerUnit);
+    }
+    CHECK(differ == 0);
+    CHECK(toFixed(0.5 / kFixedPerUnit) == 0);
+    CHECK(toFixed(1.5 / kFixedPerUnit) == 2);
+    CHECK(toFixed(kMaxWeight) == FixedDensity(kMaxWeight) * (FixedDensity(1) << 32));
+}
+
+TEST_CASE("densities of many points at once equal density() point by point, bit for bit") {
+    // The rasterizer sums voxels in batches whose ellipsoid roots are solved four at a time; an
+    // edit corrects sums with the same terms and the mesher reads density() one point at a time,
+    // so the two must agree in every bit. Points inside the cores, in the falloff (where the
+    // roots take different numbers of steps side by side) and beyond, in batches of every length.
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(0, 1);
+    for (int shape = 0; shape < 12; ++shape) {
+        Primitive e;
+        e.core = shape % 4 == 3 ? CoreShape::Box : CoreShape::Ellipsoid;
+        e.center = Vec3d(u(rng), u(rng), u(rng));
+        e.size = shape % 4 == 2 ? Vec3d(0.5, 0.5, 0.5) : Vec3d(0.05 + u(rng), 0.05 + u(rng), 0.05 + u(rng));
+        e.rotationDegrees = Vec3d(360 * u(rng), 360 * u(rng), 360 * u(rng));
+        e.falloff = 0.1 + u(rng);
+        e.weight = 0.5 + u(rng);
+        const PreparedPrimitive p(e);
+        const Box3& box = p.influenceBox();
+        std::vector<Vec3d> points;
+        for (int k = 0; k < 997; ++k)
+            points.push_back(box.center() + Vec3d((u(rng) - 0.5) * box.extent().x, (u(rng) - 0.5) * box.extent().y,
+                                                  (u(rng) - 0.5) * box.extent().z) * 1.2);
+        std::size_t inFalloff = 0, differ = 0;
+        for (std::size_t length : {std::size_t(1), std::size_t(3), std::size_t(4), std::size_t(7), points.size()}) {
+            std::vector<double> batch(points.size());
+            for (std::size_t first = 0; first < points.size(); first += length)
+                p.densities(points.data() + first, std::min(length, points.size() - first), batch.data() + first);
+            for (std::size_t k = 0; k < points.size(); ++k) {
+                const double one = p.density(points[k]);
+                differ += batch[k] != one;
+                inFalloff += one > 0 && one < e.weight;
+            }
+        }
+        INFO("shape " << shape << ": " << differ << " of " << 5 * points.size() << " differ; " << inFalloff << " in the falloff");
+        CHECK(differ == 0);
+        CHECK(inFalloff > 5 * 100);
+    }
+}
+
 TEST_CASE("rotated box density: face, edge and corner regions against the closed form") {
     const Vec3d half(0.5, 0.3, 0.2), c(0.2, -0.1, 0.4), rot(20, -35, 50);
     const PreparedPrimitive p(box(c, half, 0.5, rot));
@@ -255,7 +310,9 @@ TEST_CASE("a primitive's bounds from one distance contain its density over the b
 namespace {
 
 // Voxels (within 3 of the scene's range) where the raster differs from dense evaluation, in value
-// or in being active; also how many dense values are positive.
+// or in being active; also how many dense values are positive. Dense evaluation sums a row at a
+// time with the batched kernel the raster uses, so each of its values is checked against the
+// scene's value at the point too (a point at a time: the plain path of every Field).
 std::size_t differencesFromDense(const DensityScene& scene, double h, const openvdb::FloatGrid& grid, std::size_t& positive,
                                  std::size_t& voxels) {
     Vec3i first, last;
@@ -275,7 +332,8 @@ std::size_t differencesFromDense(const DensityScene& scene, double h, const open
                 const openvdb::Coord c(first.x + i, first.y + j, first.z + k);
                 const float v = dense[(std::size_t(k) * dims.y + j) * dims.x + i];
                 positive += v > 0;
-                wrong += acc.getValue(c) != v || acc.isValueOn(c) != (v > 0);
+                wrong += acc.getValue(c) != v || acc.isValueOn(c) != (v > 0) ||
+                         v != float(scene.value(Vec3d(c.x(), c.y(), c.z()) * h));
             }
     return wrong;
 }

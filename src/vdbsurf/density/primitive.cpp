@@ -14,10 +14,80 @@ double falloffSlope(double t) {
     return -6.0 * t * (1.0 - t);
 }
 
+namespace {
+
+// Distances from N points outside-or-in to an axis-aligned ellipsoid (radii r, not all equal)
+// and their closest points. The closest point is x_i = r_i² y_i / (t + r_i²) (y = |p|, first
+// octant; x keeps p's signs) where F(t) = Σ (r_i y_i / (t + r_i²))² − 1 = 0, t ≥ 0 outside. F is
+// convex and decreasing for t ≥ 0, so Newton's method from a point below the root climbs to it
+// monotonically (quadratically near it) and never overshoots but by rounding; each term alone
+// bounds F from below, so max(r_i y_i − r_i²) is such a start. The N points are solved in
+// lockstep, each stopping on its own test after exactly the steps it would take alone: their
+// divisions overlap in the pipeline instead of waiting on one another (a point alone is a chain
+// of ~5 dependent rounds of divisions), and every point gets the same bits whatever N is.
+template <int N> void ellipsoidDistances(const Vec3d& r, const Vec3d* p, double* distance, Vec3d* closest) {
+    const Vec3d r2(r.x * r.x, r.y * r.y, r.z * r.z);
+    Vec3d y[N], ry[N];
+    double t[N];
+    bool outside[N], live[N];
+    auto F = [&](int n, double tn, double& slope) {
+        double s = 0, ds = 0;
+        for (int i = 0; i < 3; ++i) {
+            const double inv = 1.0 / (tn + r2[i]);
+            const double q = ry[n][i] * inv;
+            s += q * q;
+            ds -= 2.0 * q * q * inv;
+        }
+        slope = ds;
+        return s - 1.0;
+    };
+    for (int n = 0; n < N; ++n) {
+        y[n] = Vec3d(std::fabs(p[n].x), std::fabs(p[n].y), std::fabs(p[n].z));
+        ry[n] = Vec3d(r.x * y[n].x, r.y * y[n].y, r.z * y[n].z);
+        double slope;
+        outside[n] = live[n] = F(n, 0.0, slope) > 0; // else on or inside the surface
+        t[n] = 0;
+        for (int i = 0; i < 3; ++i) t[n] = std::max(t[n], ry[n][i] - r2[i]);
+    }
+    for (int step = 0; step < 100; ++step) {
+        double f[N], slope[N];
+        for (int n = 0; n < N; ++n) f[n] = F(n, t[n], slope[n]);
+        bool any = false;
+        for (int n = 0; n < N; ++n) {
+            if (!live[n]) continue;
+            if (!(f[n] > 0) || !(slope[n] < 0)) {
+                live[n] = false;
+                continue;
+            }
+            const double next = t[n] - f[n] / slope[n];
+            if (!(next > t[n])) {
+                live[n] = false;
+                continue;
+            }
+            // Convergence is quadratic: after a step below 1e-9 of the scale, the error left is
+            // ~1e-18 of it, so that step is the last (one fewer evaluation than waiting for 1e-15).
+            if (next - t[n] <= 1e-9 * (t[n] + r2[0] + r2[1] + r2[2])) live[n] = false;
+            t[n] = next;
+            any = any || live[n];
+        }
+        if (!any) break;
+    }
+    for (int n = 0; n < N; ++n) {
+        if (!outside[n]) {
+            closest[n] = p[n];
+            distance[n] = 0.0;
+            continue;
+        }
+        Vec3d x;
+        for (int i = 0; i < 3; ++i) x[i] = std::copysign(r2[i] * y[n][i] / (t[n] + r2[i]), p[n][i]);
+        closest[n] = x;
+        distance[n] = length(p[n] - x);
+    }
+}
+
+} // namespace
+
 double ellipsoidDistance(const Vec3d& r, const Vec3d& p, Vec3d& closest) {
-    // Work in the first octant; the closest point keeps the point's signs. The closest point is
-    // x_i = r_i² y_i / (t + r_i²) where F(t) = Σ (r_i y_i / (t + r_i²))² - 1 = 0, t ≥ 0 outside.
-    const Vec3d y(std::fabs(p.x), std::fabs(p.y), std::fabs(p.z));
     if (r.x == r.y && r.y == r.z) { // a sphere: the closest point is along the radius
         const double len = length(p);
         if (len <= r.x) {
@@ -27,44 +97,9 @@ double ellipsoidDistance(const Vec3d& r, const Vec3d& p, Vec3d& closest) {
         closest = p * (r.x / len);
         return len - r.x;
     }
-    const Vec3d r2(r.x * r.x, r.y * r.y, r.z * r.z);
-    const Vec3d ry(r.x * y.x, r.y * y.y, r.z * y.z);
-    auto F = [&](double t, double& slope) {
-        double s = 0, ds = 0;
-        for (int i = 0; i < 3; ++i) {
-            const double inv = 1.0 / (t + r2[i]);
-            const double q = ry[i] * inv;
-            s += q * q;
-            ds -= 2.0 * q * q * inv;
-        }
-        slope = ds;
-        return s - 1.0;
-    };
-    double slope;
-    if (!(F(0, slope) > 0)) { // on or inside the surface
-        closest = p;
-        return 0.0;
-    }
-    // F is convex and decreasing for t ≥ 0, so Newton's method from a point below the root climbs
-    // to it monotonically (quadratically near it) and never overshoots but by rounding. Each
-    // term alone bounds F from below, so max(r_i y_i - r_i²) is such a start.
-    double t = 0;
-    for (int i = 0; i < 3; ++i) t = std::max(t, ry[i] - r2[i]);
-    for (int i = 0; i < 100; ++i) {
-        const double f = F(t, slope);
-        if (!(f > 0) || !(slope < 0)) break;
-        const double next = t - f / slope;
-        if (!(next > t)) break;
-        // Convergence is quadratic: after a step below 1e-9 of the scale, the error left is
-        // ~1e-18 of it, so that step is the last (one fewer evaluation than waiting for 1e-15).
-        const bool converged = next - t <= 1e-9 * (t + r2[0] + r2[1] + r2[2]);
-        t = next;
-        if (converged) break;
-    }
-    Vec3d x;
-    for (int i = 0; i < 3; ++i) x[i] = std::copysign(r2[i] * y[i] / (t + r2[i]), p[i]);
-    closest = x;
-    return length(p - x);
+    double d;
+    ellipsoidDistances<1>(r, &p, &d, &closest);
+    return d;
 }
 
 PreparedPrimitive::PreparedPrimitive(const Primitive& p) : mP(p) {
@@ -184,6 +219,60 @@ double PreparedPrimitive::densityOfOtherCores(const Vec3d& p) const {
     return mP.weight * falloffValue(d / mP.falloff);
 }
 
+void PreparedPrimitive::densities(const Vec3d* points, std::size_t count, double* out) const {
+    if (mSphere) {
+        // density() with its branches as selects (where the falloff ends they went either way
+        // voxel after voxel): the same operations on the same values, so the same bits. An edit
+        // that moves a sphere corrects every voxel near it by two of these.
+        const double radius = mP.size.x, falloff = mP.falloff, weight = mP.weight;
+        for (std::size_t k = 0; k < count; ++k) {
+            const Vec3d& p = points[k];
+            const double t = std::max(0.0, length(p - mP.center) - radius) / falloff;
+            const double s = t <= 0 ? 1.0 : (t >= 1 ? 0.0 : 1.0 - t * t * (3.0 - 2.0 * t));
+            out[k] = mInfluence.contains(p) ? weight * s : 0.0;
+        }
+        return;
+    }
+    if (mP.core != CoreShape::Ellipsoid) {
+        for (std::size_t k = 0; k < count; ++k) out[k] = density(points[k]);
+        return;
+    }
+    // density() point by point but for the roots, which wait in fours (ellipsoidDistances<4>).
+    constexpr int kLanes = 4;
+    Vec3d local[kLanes], closest[kLanes];
+    double d[kLanes];
+    std::size_t waiting[kLanes];
+    int lanes = 0;
+    auto solve = [&] {
+        for (int n = lanes; n < kLanes; ++n) local[n] = local[0]; // spare lanes repeat a point
+        ellipsoidDistances<kLanes>(mP.size, local, d, closest);
+        for (int n = 0; n < lanes; ++n) out[waiting[n]] = mP.weight * falloffValue(d[n] / mP.falloff);
+        lanes = 0;
+    };
+    for (std::size_t k = 0; k < count; ++k) {
+        // As densityOfOtherCores: the influence box, the core and the far test before the root.
+        const Vec3d& p = points[k];
+        if (!mInfluence.contains(p)) {
+            out[k] = 0.0;
+            continue;
+        }
+        const Vec3d q = toLocal(p);
+        const double u = scaledRadius(q);
+        if (u <= 1.0) {
+            out[k] = mP.weight;
+            continue;
+        }
+        if (distanceLowerBound(u) >= mP.falloff) {
+            out[k] = 0.0;
+            continue;
+        }
+        local[lanes] = q;
+        waiting[lanes++] = k;
+        if (lanes == kLanes) solve();
+    }
+    if (lanes > 0) solve();
+}
+
 Vec3d PreparedPrimitive::densityGradient(const Vec3d& p) const {
     if (beyondFalloff(p)) return {};
     Vec3d g;
@@ -214,10 +303,19 @@ void PreparedPrimitive::densityBounds(const Box3& box, double& lo, double& hi) c
     lo = 0;
     hi = densityUpperBound(box);
     if (!(hi > 0)) return;
+    Vec3d corners[8];
+    for (int k = 0; k < 8; ++k)
+        corners[k] = Vec3d(k & 1 ? box.max.x : box.min.x, k & 2 ? box.max.y : box.min.y, k & 4 ? box.max.z : box.min.z);
     double dmax = 0;
-    for (int k = 0; k < 8; ++k) {
-        const Vec3d c(k & 1 ? box.max.x : box.min.x, k & 2 ? box.max.y : box.min.y, k & 4 ? box.max.z : box.min.z);
-        dmax = std::max(dmax, coreDistance(c));
+    if (mP.core == CoreShape::Ellipsoid && !mSphere) { // the eight roots in two fours (ellipsoidDistances)
+        Vec3d local[8], closest[8];
+        double d[8];
+        for (int k = 0; k < 8; ++k) local[k] = toLocal(corners[k]);
+        ellipsoidDistances<4>(mP.size, local, d, closest);
+        ellipsoidDistances<4>(mP.size, local + 4, d + 4, closest + 4);
+        for (int k = 0; k < 8; ++k) dmax = std::max(dmax, d[k]);
+    } else {
+        for (int k = 0; k < 8; ++k) dmax = std::max(dmax, coreDistance(corners[k]));
     }
     lo = mP.weight * falloffValue(dmax / mP.falloff);
 }

@@ -59,7 +59,7 @@ LatticeFrame DensityScene::naturalFrame(double h) const {
 }
 
 FixedDensity DensityScene::contribution(std::uint32_t i, const Vec3d& p) const {
-    const FixedDensity c = std::llrint(mPrepared[i].density(p) * kFixedPerUnit);
+    const FixedDensity c = toFixed(mPrepared[i].density(p));
     return mPrimitives[i].op == DensityOp::Add ? c : -c;
 }
 
@@ -67,6 +67,25 @@ FixedDensity DensityScene::fixedSum(const Vec3d& p, const std::vector<std::uint3
     FixedDensity s = 0;
     for (std::uint32_t i : among) s += contribution(i, p);
     return s;
+}
+
+void DensityScene::addContributions(std::uint32_t i, const Vec3d* points, std::size_t count, bool takeOut, FixedDensity* sums) const {
+    constexpr std::size_t kChunk = 64;
+    double density[kChunk];
+    const bool add = (mPrimitives[i].op == DensityOp::Add) != takeOut;
+    for (std::size_t first = 0; first < count; first += kChunk) {
+        const std::size_t n = std::min(kChunk, count - first);
+        mPrepared[i].densities(points + first, n, density);
+        for (std::size_t k = 0; k < n; ++k) {
+            const FixedDensity c = toFixed(density[k]); // as contribution()
+            sums[first + k] += add ? c : -c;
+        }
+    }
+}
+
+void DensityScene::fixedSums(const Vec3d* points, std::size_t count, const std::vector<std::uint32_t>& among, FixedDensity* sums) const {
+    std::fill(sums, sums + count, FixedDensity(0));
+    for (std::uint32_t i : among) addContributions(i, points, count, false, sums);
 }
 
 double DensityScene::sum(const Vec3d& p) const {

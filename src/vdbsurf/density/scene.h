@@ -37,6 +37,15 @@ constexpr double kFixedPerUnit = 4294967296.0; // 2^32
 constexpr FixedDensity kFixedHalf = FixedDensity(1) << 31;
 constexpr double kMaxWeight = 1000;
 inline double fromFixed(FixedDensity f) { return double(f) / kFixedPerUnit; }
+// A primitive's density as a fixed-point term: rounded to the nearest unit, ties to even, as
+// std::llrint does in the default rounding mode, for every |density · 2^32| < 2^51 (weights are at
+// most kMaxWeight): a double in [2^52, 2^53) has no fraction bits, so adding 1.5 · 2^52 rounds
+// and taking it away again is exact. Inline: llrint is a libm call, and an edit makes two per
+// voxel it corrects.
+inline FixedDensity toFixed(double density) {
+    constexpr double kRounder = 6755399441055744.0; // 1.5 · 2^52
+    return FixedDensity((density * kFixedPerUnit + kRounder) - kRounder);
+}
 
 class DensityScene final : public Field {
 public:
@@ -64,6 +73,10 @@ public:
     // Fixed-point terms: primitive i's signed contribution at p, and their sum over `among`.
     FixedDensity contribution(std::uint32_t i, const Vec3d& p) const;
     FixedDensity fixedSum(const Vec3d& p, const std::vector<std::uint32_t>& among) const;
+    // The same for `count` points at once, bit for bit (PreparedPrimitive::densities): primitive
+    // i's terms added to sums[] or taken out of them (an edit's old primitive), and whole sums.
+    void addContributions(std::uint32_t i, const Vec3d* points, std::size_t count, bool takeOut, FixedDensity* sums) const;
+    void fixedSums(const Vec3d* points, std::size_t count, const std::vector<std::uint32_t>& among, FixedDensity* sums) const;
     // Primitive i's anchor at a ball's centre (PreparedPrimitive::anchorAround), and from it the
     // primitive's signed bounds over the cube centre ± halfWidth inside that ball (rounded outwards,
     // so still conservative; tighter than over the ball, by the anchor's half-space).
