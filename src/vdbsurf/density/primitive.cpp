@@ -221,15 +221,20 @@ double PreparedPrimitive::densityOfOtherCores(const Vec3d& p) const {
 
 void PreparedPrimitive::densities(const Vec3d* points, std::size_t count, double* out) const {
     if (mSphere) {
-        // density() with its branches as selects (where the falloff ends they went either way
-        // voxel after voxel): the same operations on the same values, so the same bits. An edit
-        // that moves a sphere corrects every voxel near it by two of these.
+        // density() without branches, so that the compiler runs two points at a time (with the
+        // file's -fno-trapping-math): t clamped to [0, 1] gives falloffValue's 1 and 0 at the
+        // ends exactly, and the other operations are density()'s, so the values keep their bits
+        // (for every point but a NaN, which no voxel is). An edit that moves a sphere corrects
+        // every voxel near it by two of these.
         const double radius = mP.size.x, falloff = mP.falloff, weight = mP.weight;
+        const Vec3d c = mP.center, lo = mInfluence.min, hi = mInfluence.max;
         for (std::size_t k = 0; k < count; ++k) {
             const Vec3d& p = points[k];
-            const double t = std::max(0.0, length(p - mP.center) - radius) / falloff;
-            const double s = t <= 0 ? 1.0 : (t >= 1 ? 0.0 : 1.0 - t * t * (3.0 - 2.0 * t));
-            out[k] = mInfluence.contains(p) ? weight * s : 0.0;
+            const double dx = p.x - c.x, dy = p.y - c.y, dz = p.z - c.z;
+            const double t = std::min(std::max(0.0, std::sqrt(dx * dx + dy * dy + dz * dz) - radius) / falloff, 1.0);
+            const double s = 1.0 - t * t * (3.0 - 2.0 * t);
+            const bool inside = (p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x <= hi.x) & (p.y <= hi.y) & (p.z <= hi.z);
+            out[k] = inside ? weight * s : 0.0;
         }
         return;
     }
