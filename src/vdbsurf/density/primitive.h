@@ -76,8 +76,8 @@ public:
         if (mSphere) return mP.weight * falloffValue(std::max(0.0, length(p - mP.center) - mP.size.x) / mP.falloff);
         return densityOfOtherCores(p);
     }
-    // density() at `count` points (the same bits), faster for ellipsoids: their roots are found
-    // four at a time.
+    // density() at `count` points (the same bits), faster: ellipsoid roots are found four at a
+    // time, spheres two points at a time.
     void densities(const Vec3d* points, std::size_t count, double* out) const;
     Vec3d densityGradient(const Vec3d& p) const;
     // 0: outside the influence, 1: 0 < ρ < 0.5, 2: 0.5 ≤ ρ < weight, 3: the core (seed 003's areas).
