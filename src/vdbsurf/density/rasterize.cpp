@@ -226,8 +226,8 @@ struct DensityRaster::Impl {
         }
         auto leaf = std::make_unique<LeafT>(origin, 0.0f, false);
         // The sums an edit would need, only when they are kept (5 KB a leaf otherwise wasted). An
-        // edit writes them over the leaf's old ones (prev, or unrelated to the zero sums): every
-        // old value is read before the new one goes in its place, and the parts whose layout
+        // edit writes them over the leaf's old ones (which are prev, unless prev is the zero sums):
+        // every old value is read before the new one goes in its place, and the parts whose layout
         // changes (which voxels and blocks hold sums) are built aside and moved in at the end. New
         // ones would be fresh memory while the old are still held, which on this VM costs about
         // 2 µs a page: a fifth of a first edit.
