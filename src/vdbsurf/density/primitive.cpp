@@ -203,14 +203,26 @@ bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
     return distanceLowerBound(scaledRadius(toLocal(p))) >= mP.falloff;
 }
 
+bool PreparedPrimitive::densityWithoutRoot(const Vec3d& q, double& density) const {
+    const double u = scaledRadius(q);
+    if (u <= 1.0) {
+        density = mP.weight;
+        return true;
+    }
+    if (distanceLowerBound(u) >= mP.falloff) {
+        density = 0.0;
+        return true;
+    }
+    return false;
+}
+
 double PreparedPrimitive::densityOfOtherCores(const Vec3d& p) const {
     double d;
     if (mP.core == CoreShape::Ellipsoid) {
         // The hot path of rasterization: the core and far tests before the root, on one toLocal.
         const Vec3d q = toLocal(p);
-        const double u = scaledRadius(q);
-        if (u <= 1.0) return mP.weight;
-        if (distanceLowerBound(u) >= mP.falloff) return 0.0;
+        double decided;
+        if (densityWithoutRoot(q, decided)) return decided;
         Vec3d closest;
         d = ellipsoidDistance(mP.size, q, closest);
     } else {
@@ -255,22 +267,14 @@ void PreparedPrimitive::densities(const Vec3d* points, std::size_t count, double
         lanes = 0;
     };
     for (std::size_t k = 0; k < count; ++k) {
-        // As densityOfOtherCores: the influence box, the core and the far test before the root.
+        // As density(): the influence box, then the core and the far test before the root.
         const Vec3d& p = points[k];
         if (!mInfluence.contains(p)) {
             out[k] = 0.0;
             continue;
         }
         const Vec3d q = toLocal(p);
-        const double u = scaledRadius(q);
-        if (u <= 1.0) {
-            out[k] = mP.weight;
-            continue;
-        }
-        if (distanceLowerBound(u) >= mP.falloff) {
-            out[k] = 0.0;
-            continue;
-        }
+        if (densityWithoutRoot(q, out[k])) continue;
         local[lanes] = q;
         waiting[lanes++] = k;
         if (lanes == kLanes) solve();

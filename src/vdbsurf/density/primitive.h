@@ -114,6 +114,9 @@ private:
     bool beyondFalloff(const Vec3d& p) const; // a cheap sufficient test for density 0
     double scaledRadius(const Vec3d& local) const; // ellipsoids: |local / radii|, ≤ 1 in the core
     double distanceLowerBound(double scaled) const; // ellipsoids: the distance is at least this
+    // Ellipsoids, at a local point: the density when it needs no root (in the core, or beyond the
+    // falloff by distanceLowerBound), and whether it did.
+    bool densityWithoutRoot(const Vec3d& local, double& density) const;
     double nearestCorePoint(const Vec3d& p, Vec3d& closest) const; // coreDistance(p), and the point (world)
     Vec3d boxExcess(const Vec3d& local) const;  // box cores: how far past each face
     Primitive mP;
