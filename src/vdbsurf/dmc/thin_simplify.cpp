@@ -45,9 +45,8 @@ struct Quadric {
     }
 };
 
-struct Triangle {
+struct Triangle { // (the polygon it was cut from: firstTriangle in simplifyThinParts)
     std::array<std::uint32_t, 3> v; // local vertices
-    std::uint32_t polygon;          // the mesh polygon it was cut from
     bool alive = true, changed = false;
 };
 
@@ -305,6 +304,10 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
     ThinSimplifyStats local;
     ThinSimplifyStats& st = stats ? *stats : local;
     st = ThinSimplifyStats();
+    auto timed = [&](Mesh&& result) {
+        st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        return std::move(result);
+    };
     if (thinNodes.empty() || mesh.empty()) return mesh;
 
     // A vertex is in a thin part when it lies within kReach cells (along every axis) of a node
@@ -393,14 +396,11 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
         for (std::uint32_t i = 2; i + 1 < k; ++i) diagonals.insert(undirectedEdgeKey(P[s], P[(s + i) % k]));
         for (std::uint32_t i = 1; i + 1 < k; ++i)
             simplifier.triangles.push_back(
-                {{localVertex(P[s]), localVertex(P[(s + i) % k]), localVertex(P[(s + i + 1) % k])}, std::uint32_t(p)});
+                {{localVertex(P[s]), localVertex(P[(s + i) % k]), localVertex(P[(s + i + 1) % k])}});
     }
     firstTriangle[mesh.polygonCount()] = std::uint32_t(simplifier.triangles.size());
     st.regionTriangles = simplifier.triangles.size();
-    if (simplifier.triangles.empty()) {
-        st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        return mesh;
-    }
+    if (simplifier.triangles.empty()) return timed(std::move(mesh));
     std::vector<std::pair<std::uint32_t, std::uint32_t>> fixedEdges;
     for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
         if (inRegion[p]) continue;
@@ -423,10 +423,7 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
     for (std::size_t g = 0; g < mesh.points.size(); ++g)
         if (localOf[g] != 0xffffffffu && outside[g]) simplifier.locked[localOf[g]] = 1;
     st.collapses = simplifier.run(options.cancel);
-    if (st.collapses == 0) {
-        st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-        return mesh;
-    }
+    if (st.collapses == 0) return timed(std::move(mesh));
 
     // The mesh again, in polygon order: untouched polygons as they were, the rest as the
     // triangles left of them.
@@ -454,9 +451,7 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
             out.addPolygon({globalOf[tr.v[0]], globalOf[tr.v[1]], globalOf[tr.v[2]]});
         }
     }
-    out = keepPolygons(out, std::vector<std::uint8_t>(out.polygonCount(), 1));
-    st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    return out;
+    return timed(keepPolygons(out, std::vector<std::uint8_t>(out.polygonCount(), 1)));
 }
 
 } // namespace vdbsurf
