@@ -119,6 +119,58 @@ TEST_CASE("mayStraddle answers as straddles(bounds) does, aligned and rotated, s
     }
 }
 
+TEST_CASE("mayStraddle over boxes of many voxels answers as straddles(bounds) does, where leaves lie on one side") {
+    // Boxes of 5 to 32 voxels a side take the range of the voxels they cover, which mayStraddle
+    // finds sooner: it stops at the first proof and takes a partly covered leaf's whole range
+    // when that lies on one side of iso. A smooth field (distance from a point, as a level set
+    // stores it) puts most leaves on one side; iso values at random, and at the ends of leaves'
+    // own ranges (where taking a whole range for a part would show first), must all agree.
+    initializeOpenVdb();
+    auto g = openvdb::FloatGrid::create(9.0f);
+    g->setTransform(openvdb::math::Transform::createLinearTransform(0.25));
+    {
+        auto acc = g->getAccessor();
+        for (int i = -24; i < 24; ++i)
+            for (int j = -24; j < 24; ++j)
+                for (int k = -24; k < 24; ++k) {
+                    if (i > 8 && j > 8) continue; // a column of leaves without data: background there
+                    const double d = std::sqrt(double(i * i + j * j + k * k)) * 0.25 - 2.5;
+                    acc.setValue({i, j, k}, float(d));
+                }
+    }
+    std::vector<double> leafEnds;
+    for (auto leaf = g->tree().cbeginLeaf(); leaf; ++leaf) {
+        float lo = 1e30f, hi = -1e30f;
+        for (auto v = leaf->cbeginValueAll(); v; ++v) lo = std::min(lo, *v), hi = std::max(hi, *v);
+        leafEnds.push_back(lo);
+        leafEnds.push_back(hi);
+    }
+    GridField f(g, "distance");
+    std::mt19937 rng(17);
+    std::uniform_real_distribution<double> c(-6.5, 6.5), s(0.6, 4.0), iso(-3.0, 9.5);
+    std::uniform_int_distribution<std::size_t> pick(0, leafEnds.size() - 1);
+    std::size_t yes = 0, no = 0;
+    for (int b = 0; b < 3000; ++b) {
+        Vec3d centre(c(rng), c(rng), c(rng));
+        const Vec3d half(s(rng), s(rng), s(rng));
+        // Half the boxes start on a voxel centre (whole leaves then fall inside them exactly).
+        if (b % 2 == 0)
+            for (std::size_t a = 0; a < 3; ++a) centre[a] = 0.25 * std::round((centre[a] - half[a]) / 0.25) + half[a];
+        const Box3 box{centre - half, centre + half};
+        const Interval iv = f.bounds(box);
+        const double end = leafEnds[pick(rng)];
+        for (double v : {iso(rng), iv.lo, iv.hi, iv.lo - 1e-7, iv.hi + 1e-7, end, end - 1e-6, end + 1e-6, 0.0}) {
+            INFO("box " << box.min.x << " " << box.min.y << " " << box.min.z << " .. " << box.max.x << " " << box.max.y << " "
+                        << box.max.z << " iso " << v << " bounds [" << iv.lo << ", " << iv.hi << "]");
+            const bool answer = f.mayStraddle(box, v);
+            REQUIRE(answer == straddles(iv, v));
+            ++(answer ? yes : no);
+        }
+    }
+    CHECK(yes > 5000);
+    CHECK(no > 5000);
+}
+
 TEST_CASE("sampleNodes gives value() bit for bit on every kind of lattice frame") {
     // On voxel centres (stride 1 and 2), between them (finer, coarser, offset), and rotated: each
     // path (direct reads, a gathered block of voxels, one sample a node) agrees with value().

@@ -235,20 +235,33 @@ public:
 
     Interval bounds(const Box3& box) const override {
         Interval out;
-        boundsUnlessApart(box, nullptr, out);
-        return out;
+        const Interval3 ib = indexBox(box);
+        if (boundsOverFewCells(ib, nullptr, out) == FewCells::Bounds) return out;
+        MinMax mm;
+        query(supportBox(ib), mm);
+        return {mm.lo, mm.hi};
     }
 
     bool mayStraddle(const Box3& box, double iso) const override {
         Interval out;
-        return boundsUnlessApart(box, &iso, out) && straddles(out, iso);
+        const Interval3 ib = indexBox(box);
+        switch (boundsOverFewCells(ib, &iso, out)) {
+        case FewCells::Apart: return false;
+        case FewCells::Bounds: return straddles(out, iso);
+        case FewCells::TooMany: break;
+        }
+        return queryStraddles(supportBox(ib), iso);
     }
 
-    // bounds(box) in `out`; with an iso value, first the range of the voxels the box reads (which
-    // holds the interpolant's): if that does not straddle iso, returns false before the exact
-    // range (most cells a lattice asks about lie clear of the surface).
-    bool boundsUnlessApart(const Box3& box, const double* iso, Interval& out) const {
-        const Interval3 ib = indexBox(box);
+    // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1, the latter
+    // with weight zero when q is a whole number (up to rounding, which straddles() absorbs).
+    static CoordBBox supportBox(const Interval3& ib) { return CoordBBox(lowerSupport(ib.lo), upperSupport(ib.hi)); }
+
+    enum class FewCells { Apart, Bounds, TooMany };
+    // Over a box that spans few voxel cells: bounds(box) in `out` (Bounds), or, with an iso value,
+    // Apart when the voxels the box reads (which hold the interpolant's range) lie clear of it
+    // already (most cells a lattice asks about lie clear of the surface). TooMany otherwise.
+    FewCells boundsOverFewCells(const Interval3& ib, const double* iso, Interval& out) const {
         const openvdb::Vec3d &lo = ib.lo, &hi = ib.hi;
         // Between voxel planes the trilinear interpolant is multilinear, so over a box that
         // spans only a few voxel cells its range is the range of its values at the box's corners
@@ -256,55 +269,47 @@ public:
         // values when the mesh lattice is finer than the grid.
         std::array<std::array<double, 5>, 3> ticks;
         std::array<int, 3> nticks{};
-        bool fewCells = ib.finite();
-        for (int a = 0; a < 3 && fewCells; ++a) {
+        if (!ib.finite()) return FewCells::TooMany;
+        for (int a = 0; a < 3; ++a) {
             ticks[a][0] = lo[a];
             int n = 1;
-            for (double plane = std::floor(lo[a]) + 1; plane < hi[a] && fewCells; plane += 1) {
-                if (n >= 4) fewCells = false;
-                else ticks[a][std::size_t(n++)] = plane;
+            for (double plane = std::floor(lo[a]) + 1; plane < hi[a]; plane += 1) {
+                if (n >= 4) return FewCells::TooMany;
+                ticks[a][std::size_t(n++)] = plane;
             }
             ticks[a][std::size_t(n++)] = hi[a];
             nticks[std::size_t(a)] = n;
         }
-        if (fewCells) {
-            // The voxels every tick's trilinear sample reads (at most 6 a side), read once leaf by
-            // leaf; each sample is then BoxSampler's own interpolation of them (the same bits as
-            // BoxSampler::sample, which read 8 voxels through the accessor for each of up to 125
-            // ticks: on a lattice 3 voxels a cell that was most of the lattice's time).
-            using ValueT = typename TreeT::ValueType;
-            const Coord base(int(std::floor(lo.x())), int(std::floor(lo.y())), int(std::floor(lo.z())));
-            const Vec3i dims(int(std::floor(hi.x())) + 2 - base.x(), int(std::floor(hi.y())) + 2 - base.y(),
-                             int(std::floor(hi.z())) + 2 - base.z());
-            ValueT voxels[6 * 6 * 6];
-            if (dims.x > 6 || dims.y > 6 || dims.z > 6) throw std::logic_error("GridField::bounds: more voxels than ticks allow");
-            Acc acc(mTree);
-            sampleBlock(acc, base, dims, voxels);
-            if (iso) {
-                // Widened by the rounding of BoxSampler's three lerps in ValueT, which can land a
-                // few ulps beyond the voxels' range.
-                MinMax range;
-                for (int i = 0; i < dims.x * dims.y * dims.z; ++i) range.add(double(voxels[i]));
-                const double margin = 16 * double(std::numeric_limits<ValueT>::epsilon()) * std::max(std::fabs(range.lo), std::fabs(range.hi));
-                if (!straddles({range.lo - margin, range.hi + margin}, *iso)) return false;
-            }
-            MinMax mm;
-            for (int i = 0; i < nticks[0]; ++i)
-                for (int j = 0; j < nticks[1]; ++j)
-                    for (int k = 0; k < nticks[2]; ++k) {
-                        const openvdb::Vec3d t(ticks[0][std::size_t(i)], ticks[1][std::size_t(j)], ticks[2][std::size_t(k)]);
-                        const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(t);
-                        mm.add(double(interpolateBlock(voxels, dims, idx.x() - base.x(), idx.y() - base.y(), idx.z() - base.z(), t - idx)));
-                    }
-            out = {mm.lo, mm.hi};
-            return true;
+        // The voxels every tick's trilinear sample reads (at most 6 a side), read once leaf by
+        // leaf; each sample is then BoxSampler's own interpolation of them (the same bits as
+        // BoxSampler::sample, which read 8 voxels through the accessor for each of up to 125
+        // ticks: on a lattice 3 voxels a cell that was most of the lattice's time).
+        using ValueT = typename TreeT::ValueType;
+        const Coord base(int(std::floor(lo.x())), int(std::floor(lo.y())), int(std::floor(lo.z())));
+        const Vec3i dims(int(std::floor(hi.x())) + 2 - base.x(), int(std::floor(hi.y())) + 2 - base.y(),
+                         int(std::floor(hi.z())) + 2 - base.z());
+        ValueT voxels[6 * 6 * 6];
+        if (dims.x > 6 || dims.y > 6 || dims.z > 6) throw std::logic_error("GridField::bounds: more voxels than ticks allow");
+        Acc acc(mTree);
+        sampleBlock(acc, base, dims, voxels);
+        if (iso) {
+            // Widened by the rounding of BoxSampler's three lerps in ValueT, which can land a
+            // few ulps beyond the voxels' range.
+            MinMax range;
+            for (int i = 0; i < dims.x * dims.y * dims.z; ++i) range.add(double(voxels[i]));
+            const double margin = 16 * double(std::numeric_limits<ValueT>::epsilon()) * std::max(std::fabs(range.lo), std::fabs(range.hi));
+            if (!straddles({range.lo - margin, range.hi + margin}, *iso)) return FewCells::Apart;
         }
-        // Trilinear samples at index position q use voxels floor(q) and floor(q) + 1, the latter
-        // with weight zero when q is a whole number (up to rounding, which straddles() absorbs).
         MinMax mm;
-        query(CoordBBox(lowerSupport(lo), upperSupport(hi)), mm);
+        for (int i = 0; i < nticks[0]; ++i)
+            for (int j = 0; j < nticks[1]; ++j)
+                for (int k = 0; k < nticks[2]; ++k) {
+                    const openvdb::Vec3d t(ticks[0][std::size_t(i)], ticks[1][std::size_t(j)], ticks[2][std::size_t(k)]);
+                    const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(t);
+                    mm.add(double(interpolateBlock(voxels, dims, idx.x() - base.x(), idx.y() - base.y(), idx.z() - base.z(), t - idx)));
+                }
         out = {mm.lo, mm.hi};
-        return true;
+        return FewCells::Bounds;
     }
 
     LatticeFrame naturalFrame(double h) const override {
@@ -539,6 +544,22 @@ private:
                        Coord(std::min(cx + 8, end.x()), std::min(cy + 8, end.y()), std::min(cz + 8, end.z())));
     }
 
+    // row[i] = column[64 i] for i < n, 1 <= n <= 8: one row along x of a leaf's buffer.
+    template <typename InT, typename OutT>
+    static void copyStrided(const InT* column, OutT* row, int n) {
+        switch (n) {
+        case 8: row[7] = OutT(column[7 << 6]); [[fallthrough]];
+        case 7: row[6] = OutT(column[6 << 6]); [[fallthrough]];
+        case 6: row[5] = OutT(column[5 << 6]); [[fallthrough]];
+        case 5: row[4] = OutT(column[4 << 6]); [[fallthrough]];
+        case 4: row[3] = OutT(column[3 << 6]); [[fallthrough]];
+        case 3: row[2] = OutT(column[2 << 6]); [[fallthrough]];
+        case 2: row[1] = OutT(column[1 << 6]); [[fallthrough]];
+        case 1: row[0] = OutT(column[0]); break;
+        default: break;
+        }
+    }
+
     // Every voxel of the box [base, base + dims), x fastest, leaf by leaf: one probe per leaf the
     // box touches and direct reads of its buffer, instead of an accessor lookup per voxel.
     template <typename OutT>
@@ -550,14 +571,19 @@ private:
         forEachLeafPart(base, base.offsetBy(dims.x, dims.y, dims.z), [&](const Coord& leafOrigin, const Coord& lo, const Coord& hi) {
             if (const LeafT* leaf = acc.probeConstLeaf(leafOrigin)) {
                 const auto* data = leaf->buffer().data();
-                // A row along x at a time: x strides the leaf's buffer by 64, the output by 1.
+                // A row along x at a time: x strides the leaf's buffer by 64, the output by 1. Rows
+                // hold 1 to 8 values: copied straight, without the vector loop (and its set-up for
+                // gathering strided values) the compiler makes of a loop of unknown length, which
+                // cost twice the instructions.
                 const int n = hi.x() - lo.x();
-                for (int z = lo.z(); z < hi.z(); ++z)
-                    for (int y = lo.y(); y < hi.y(); ++y) {
-                        OutT* row = &at(lo.x(), y, z);
-                        const auto* column = data + (((lo.x() & 7) << 6) | ((y & 7) << 3) | (z & 7));
-                        for (int i = 0; i < n; ++i) row[i] = OutT(column[i << 6]);
-                    }
+                const std::size_t rowStep = std::size_t(dims.x), planeStep = std::size_t(dims.x) * std::size_t(dims.y);
+                OutT* plane = &at(lo.x(), lo.y(), lo.z());
+                const auto* first = data + (((lo.x() & 7) << 6) | ((lo.y() & 7) << 3) | (lo.z() & 7));
+                for (int z = lo.z(); z < hi.z(); ++z, plane += planeStep, ++first) {
+                    OutT* row = plane;
+                    const auto* column = first;
+                    for (int y = lo.y(); y < hi.y(); ++y, row += rowStep, column += 8) copyStrided(column, row, n);
+                }
             } else {
                 const OutT v = OutT(acc.getValue(leafOrigin));
                 for (int z = lo.z(); z < hi.z(); ++z)
@@ -790,6 +816,70 @@ private:
                     if (const Node2T* n2 = root.template probeConstNode<Node2T>(c)) queryInternal(*n2, box, mm);
                     else mm.add(double(root.getValue(c)));
                 }
+    }
+
+    // straddles(range of query(box), iso), the same answer sooner: it stops at the first proof (a
+    // range only widens as voxels are added, and straddles() widens with it), and a node the box
+    // covers in part counts with its whole range where that range lies on one side of iso by more
+    // than any range of this grid's values widens the test (its part then lies on that side too,
+    // and adds nothing the whole does not). A lattice's leaf blocks are mostly clear of the surface,
+    // and a block at the grid's voxel size reads a one-voxel slab of seven neighbouring leaves:
+    // those reads were a tenth of marching cubes' time on the armadillo.
+    bool queryStraddles(const CoordBBox& box, double iso) const {
+        if (!box.hasOverlap(mIndexValues)) return straddles({double(mTree.background()), double(mTree.background())}, iso);
+        constexpr int D = int(Node2T::DIM);
+        const Coord lo = box.min() & ~(D - 1), hi = box.max() & ~(D - 1);
+        const std::int64_t count = std::int64_t((hi.x() - lo.x()) / D + 1) * ((hi.y() - lo.y()) / D + 1) * ((hi.z() - lo.z()) / D + 1);
+        if (count > 512) return straddles({mAll.lo, mAll.hi}, iso);
+        StraddleQuery q{box, iso, boundsTolerance({mAll.lo, mAll.hi}, iso), {}};
+        const RootT& root = mTree.root();
+        for (int x = lo.x(); x <= hi.x(); x += D)
+            for (int y = lo.y(); y <= hi.y(); y += D)
+                for (int z = lo.z(); z <= hi.z(); z += D) {
+                    const Coord c(x, y, z);
+                    if (const Node2T* n2 = root.template probeConstNode<Node2T>(c)) {
+                        if (straddlesInNode(*n2, q)) return true;
+                    } else if (q.add(double(root.getValue(c)))) {
+                        return true;
+                    }
+                }
+        return q.straddles();
+    }
+
+    struct StraddleQuery {
+        CoordBBox box;
+        double iso, clear; // clear: the widest tolerance straddles() gives a range of this grid's values
+        MinMax mm;
+        bool straddles() const { return vdbsurf::straddles({mm.lo, mm.hi}, iso); }
+        bool add(double v) { return mm.add(v), straddles(); }
+        bool add(const MinMax& r) { return mm.add(r), straddles(); }
+        bool oneSide(const MinMax& r) const { return r.lo - clear > iso || r.hi + clear < iso; }
+    };
+
+    template <typename NodeT>
+    bool straddlesInNode(const NodeT& node, StraddleQuery& q) const {
+        const MinMax& whole = mCache.at(&node);
+        if (contains(q.box, node.getNodeBoundingBox()) || q.oneSide(whole)) return q.add(whole);
+        return anySlot(node, q.box, [&](openvdb::Index n) {
+            if (!node.isChildMaskOn(n)) return q.add(double(node.getTable()[n].getValue()));
+            const auto& child = *node.getTable()[n].getChild();
+            if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) return straddlesInLeaf(child, q);
+            else return straddlesInNode(child, q);
+        });
+    }
+
+    bool straddlesInLeaf(const LeafT& leaf, StraddleQuery& q) const {
+        const MinMax& whole = mCache.at(&leaf);
+        const CoordBBox nb = leaf.getNodeBoundingBox();
+        if (contains(q.box, nb) || q.oneSide(whole)) return q.add(whole);
+        CoordBBox in = nb;
+        in.intersect(q.box);
+        const auto* data = leaf.buffer().data();
+        MinMax part;
+        for (int x = in.min().x(); x <= in.max().x(); ++x)
+            for (int y = in.min().y(); y <= in.max().y(); ++y)
+                for (int z = in.min().z(); z <= in.max().z(); ++z) part.add(double(data[LeafT::coordToOffset(Coord(x, y, z))]));
+        return q.add(part);
     }
 
     template <typename NodeT>
