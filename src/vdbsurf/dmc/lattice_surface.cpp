@@ -254,6 +254,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
         std::array<std::uint8_t, kLeafNodeCount> needed;
         // 0: in place, 1: moved, 2: on a sharp feature (value = iso) counted outside, 3: the same counted inside
         std::array<std::uint8_t, kLeafNodeCount> moved;
+        std::array<std::uint8_t, kLeafNodeCount> inside; // 1: the node counts inside (of the needed ones)
         std::array<Vec3f, kLeafNodeCount> offsets;
         NodeGradients gradients;
         // A leaf's crossings are gathered here and then copied at their exact count: grown in
@@ -325,14 +326,17 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 return moved[i] ? p + Vec3d(offsets[i]) : p;
             };
 
+            // Each node's side once (a node is a corner of up to eight cells).
+            for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i)
+                inside[i] = needed[i] && (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side));
             std::size_t rank = 0;
             for (auto it = mask.beginOn(); it; ++it, ++rank) {
                 const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
-                unsigned config = 0;
-                for (int c = 0; c < 8; ++c) {
-                    const std::size_t i = std::size_t(leafCornerIndex(it.pos(), c));
-                    if (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side)) config |= 1u << c;
-                }
+                const std::uint8_t* corner = &inside[std::size_t(leafNodeIndex(x, y, z))];
+                constexpr int kY = kLeafNodesPerSide, kZ = kLeafNodesPerSide * kLeafNodesPerSide;
+                const unsigned config = unsigned(corner[0]) | unsigned(corner[1]) << 1 | unsigned(corner[kY]) << 2 |
+                                        unsigned(corner[kY + 1]) << 3 | unsigned(corner[kZ]) << 4 | unsigned(corner[kZ + 1]) << 5 |
+                                        unsigned(corner[kZ + kY]) << 6 | unsigned(corner[kZ + kY + 1]) << 7;
                 w.config[rank] = std::uint8_t(config);
                 w.vertexPrefix[rank] = std::uint16_t(vertices.size());
                 if (config == 0 || config == 255) continue;
@@ -341,8 +345,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 const Coord cell = w.origin.offsetBy(x, y, z);
                 const bool boundary = onMaxFace(cell, range);
                 std::uint16_t owned = 0;
-                for (int e = 0; e < 12; ++e) {
-                    if (!(cc.edgeMask & (1u << e))) continue;
+                for (unsigned edges = cc.edgeMask; edges; edges &= edges - 1) {
+                    const int e = __builtin_ctz(edges);
                     const int axis = cubeEdgeAxis(e);
                     const Vec3i eo = cubeEdgeOrigin(e);
                     if (eo != Vec3i()) {

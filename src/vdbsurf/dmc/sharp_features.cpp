@@ -778,17 +778,21 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             // The candidates' points are other points of this line: a hair of slack for rounding
             // keeps every node the exact test below may accept.
             const double slack = 1e-9 * (h + std::max({std::fabs(p.onLine.x), std::fabs(p.onLine.y), std::fabs(p.onLine.z)}));
+            // placedFirst is in node order (x, then y, then z): in each of the block's four planes
+            // of x, its nodes lie in one run of the list, from a search for the block's first
+            // column to the end of its last (rows of other z between: few, even on a box's face).
             int count = 0;
-            for (int z = -1; z <= 2; ++z)
-                for (int y = -1; y <= 2; ++y)
-                    for (int x = -1; x <= 2; ++x) {
-                        const Coord nb = p.cell.offsetBy(x, y, z);
-                        if (!placed.isValueOn(nb)) continue;
-                        const auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), nb,
-                                                         [](const Proposal& q, const Coord& c) { return q.node < c; });
-                        if (it == placedFirst.end() || it->node != nb || it->cell == p.cell) continue;
-                        if (distanceToLine(it->point, p.onLine, p.direction) <= lineTolerance + slack) placedOnLine[count++] = &*it;
-                    }
+            const Coord lo = p.cell.offsetBy(-1, -1, -1), hi = p.cell.offsetBy(2, 2, 2);
+            for (int x = lo.x(); x <= hi.x(); ++x)
+                for (auto it = std::lower_bound(placedFirst.begin(), placedFirst.end(), Coord(x, lo.y(), lo.z()),
+                                                [](const Proposal& q, const Coord& c) { return q.node < c; });
+                     it != placedFirst.end() && !(Coord(x, hi.y(), hi.z()) < it->node); ++it) {
+                    const Coord& n = it->node;
+                    if (n.z() < lo.z() || n.z() > hi.z()) continue;
+                    // (A node bridging took back is in the list but no longer placed.)
+                    if (it->cell == p.cell || !placed.isValueOn(n)) continue;
+                    if (distanceToLine(it->point, p.onLine, p.direction) <= lineTolerance + slack) placedOnLine[count++] = &*it;
+                }
             if (count == 0 || !passes(i)) continue;
             for (int k = 0; k < 8; ++k) {
                 const Coord node = p.cell.offsetBy(k & 1, (k >> 1) & 1, (k >> 2) & 1);
