@@ -177,25 +177,33 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             box.intersect(cellRange);
             const Coord lo = box.min() - o, hi = box.max() - o;
             field.sampleNodes(frame, toVec(o), {kBlockNodes, kBlockNodes, kBlockNodes}, nullptr, vals.data());
+            // Without a branch a node (a NaN is neither inside nor at iso; the rare block that
+            // holds one is searched for it below).
+            bool anyNan = false;
             for (int x = 0; x < kBlockNodes; ++x)
                 for (int y = 0; y < kBlockNodes; ++y) {
-                    std::uint16_t in = 0, eq = 0;
+                    unsigned in = 0, eq = 0, nan = 0;
+                    const double* column = &vals[std::size_t(x + kBlockNodes * y)];
                     for (int z = 0; z < kBlockNodes; ++z) {
-                        const int n = x + kBlockNodes * y + kBlockNodes * kBlockNodes * z;
-                        const double v = vals[std::size_t(n)];
-                        if (std::isnan(v)) {
-                            // Only nodes of cells inside the range count.
-                            if (nanAt[bi] < 0 && x <= hi.x() + 1 && y <= hi.y() + 1 && z <= hi.z() + 1 && x >= lo.x() &&
-                                y >= lo.y() && z >= lo.z())
-                                nanAt[bi] = n;
-                            continue;
-                        }
-                        in |= std::uint16_t(isInside(v, iso, side) ? 1u << z : 0u);
-                        eq |= std::uint16_t(v == iso ? 1u << z : 0u);
+                        const double v = column[std::size_t(kBlockNodes * kBlockNodes * z)];
+                        in |= unsigned(side == Inside::Below ? v < iso : v > iso) << z;
+                        eq |= unsigned(v == iso) << z;
+                        nan |= unsigned(v != v) << z;
                     }
-                    inside[std::size_t(x * kBlockNodes + y)] = in;
-                    atIso[std::size_t(x * kBlockNodes + y)] = eq;
+                    inside[std::size_t(x * kBlockNodes + y)] = std::uint16_t(in);
+                    atIso[std::size_t(x * kBlockNodes + y)] = std::uint16_t(eq);
+                    anyNan = anyNan || nan != 0;
                 }
+            if (anyNan)
+                for (int x = 0; x < kBlockNodes && nanAt[bi] < 0; ++x)
+                    for (int y = 0; y < kBlockNodes && nanAt[bi] < 0; ++y)
+                        for (int z = 0; z < kBlockNodes && nanAt[bi] < 0; ++z) {
+                            const int n = x + kBlockNodes * y + kBlockNodes * kBlockNodes * z;
+                            // Only nodes of cells inside the range count.
+                            if (std::isnan(vals[std::size_t(n)]) && x <= hi.x() + 1 && y <= hi.y() + 1 && z <= hi.z() + 1 &&
+                                x >= lo.x() && y >= lo.y() && z >= lo.z())
+                                nanAt[bi] = n;
+                        }
             // Eight cells along z at once: a cell changes side when some but not all of its
             // corners are inside; it also touches the surface when it has no inside corner and
             // a corner exactly at iso.
