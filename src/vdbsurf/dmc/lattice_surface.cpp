@@ -44,8 +44,10 @@ struct LeafWork {
     std::vector<std::uint16_t> vertexPrefix;
     std::vector<Vec3f> vertices;
     std::vector<Vec3f> normals;
-    // Per cell (rank): may a sharp feature pass through it? Only kept with normals.
-    std::vector<std::uint8_t> sharpCandidate;
+    // With normals: the surface cells through which a sharp feature may pass, as
+    // (offset << 16) | rank, by rank (the sharp pass visits these alone).
+    bool candidatesKnown = false;
+    std::vector<std::uint32_t> sharpCells;
     // Vertices that sit exactly on a node whose value is the iso value: (local vertex, node).
     std::vector<std::pair<std::uint32_t, Coord>> nodeVertices;
     // Of those, the ones put there because they rounded to the node (ascending).
@@ -77,10 +79,7 @@ constexpr std::uint64_t kUnresolvedMinCells = 32;
 
 bool unresolvedForFeatures(const LeafWork& w, double share) {
     if (w.cellsWithSurface < kUnresolvedMinCells) return false;
-    std::uint64_t candidates = 0;
-    for (std::size_t rank = 0; rank < w.config.size(); ++rank)
-        if (w.config[rank] != 0 && w.config[rank] != 255) candidates += w.sharpCandidate[rank];
-    return double(candidates) >= share * double(w.cellsWithSurface);
+    return double(w.sharpCells.size()) >= share * double(w.cellsWithSurface);
 }
 
 inline std::uint32_t cellRank(const MaskLeaf& leaf, const LeafWork& w, openvdb::Index offset) {
@@ -238,6 +237,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
     Progress progress("surface crossings", tasks, options.cancel);
     struct Crossings {
         std::vector<Vec3f> vertices, normals;
+        std::vector<std::uint32_t> sharpCells;
     };
     tbb::enumerable_thread_specific<Crossings> scratchCrossings;
 
@@ -263,6 +263,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
         Crossings& scratch = scratchCrossings.local();
         std::vector<Vec3f>& vertices = scratch.vertices;
         std::vector<Vec3f>& normals = scratch.normals;
+        std::vector<std::uint32_t>& sharpCells = scratch.sharpCells;
         for (std::size_t task = r.begin(); task < r.end(); ++task) {
             const std::size_t li = only ? (*only)[task] : task;
             const MaskLeaf& leaf = leafManager.leaf(li);
@@ -280,7 +281,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
             w.config.resize(cells);
             w.ownedEdges.resize(cells);
             w.vertexPrefix.resize(cells);
-            if (options.normals) w.sharpCandidate.assign(cells, 1);
+            w.candidatesKnown = options.normals;
+            sharpCells.clear();
 
             if (nodeGradients) {
                 // The gradients' sample holds the leaf's node values too.
@@ -423,10 +425,14 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     }
                 }
                 w.ownedEdges[rank] = owned;
-                if (nodeGradients) {
-                    bool anyMoved = false;
-                    for (int c = 0; c < 8 && !anyMoved; ++c) anyMoved = moved[std::size_t(leafCornerIndex(it.pos(), c))] != 0;
-                    if (!anyMoved) w.sharpCandidate[rank] = gradients.mayHoldSharpEdge(x, y, z, edgeLimit);
+                if (options.normals) {
+                    bool candidate = true;
+                    if (nodeGradients) {
+                        bool anyMoved = false;
+                        for (int c = 0; c < 8 && !anyMoved; ++c) anyMoved = moved[std::size_t(leafCornerIndex(it.pos(), c))] != 0;
+                        if (!anyMoved) candidate = gradients.mayHoldSharpEdge(x, y, z, edgeLimit);
+                    }
+                    if (candidate) sharpCells.push_back(std::uint32_t(off) << 16 | std::uint32_t(rank));
                 }
                 for (int l = 0; l < cc.loopCount; ++l) {
                     w.faceCount += loopFaces(cc.loopSize[l], tri, options.keepLoops);
@@ -435,8 +441,9 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
             }
             w.vertices.assign(vertices.begin(), vertices.end());
             w.normals.assign(normals.begin(), normals.end());
+            w.sharpCells.assign(sharpCells.begin(), sharpCells.end());
             if (nodeGradients && options.sharpEdgeCosine < 1 && unresolvedForFeatures(w, options.unresolvedShare)) {
-                std::fill(w.sharpCandidate.begin(), w.sharpCandidate.end(), std::uint8_t(0));
+                w.sharpCells.clear();
                 w.unresolved = true;
             }
             progress.advance();
@@ -488,28 +495,32 @@ void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCross
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
         std::array<Vec3f, 12> pos, nrm;
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
-            const MaskLeaf& leaf = im.leafManager.leaf(li);
             const LeafWork& w = im.work[li];
-            std::size_t rank = 0;
-            for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
-                const unsigned config = w.config[rank];
-                if (config == 0 || config == 255) continue;
-                if (onlySharpCandidates && !w.sharpCandidate.empty() && !w.sharpCandidate[rank]) continue;
-                const int off = int(it.pos());
+            auto visit = [&](openvdb::Index offset, unsigned config) {
+                const int off = int(offset);
                 CellCrossings c;
                 c.cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);
                 c.config = config;
                 const CubeCase& cc = cubeCase(config);
                 const bool onMax = onMaxFace(c.cell, im.lattice.cellRange);
-                for (int e = 0; e < 12; ++e) {
-                    if (!(cc.edgeMask & (1u << e))) continue;
-                    const VertexRef v = im.vertexOfCell(li, w, it.pos(), c.cell, onMax, e);
+                for (unsigned edges = cc.edgeMask; edges; edges &= edges - 1) {
+                    const int e = __builtin_ctz(edges);
+                    const VertexRef v = im.vertexOfCell(li, w, offset, c.cell, onMax, e);
                     pos[std::size_t(e)] = im.work[v.leaf].vertices[v.local];
                     if (im.options.normals) nrm[std::size_t(e)] = im.work[v.leaf].normals[v.local];
                 }
                 c.position = pos.data();
                 c.normal = im.options.normals ? nrm.data() : nullptr;
                 fn(c);
+            };
+            if (onlySharpCandidates && w.candidatesKnown) {
+                for (const std::uint32_t cell : w.sharpCells) visit(openvdb::Index(cell >> 16), w.config[cell & 0xFFFFu]);
+                continue;
+            }
+            std::size_t rank = 0;
+            for (auto it = im.leafManager.leaf(li).getValueMask().beginOn(); it; ++it, ++rank) {
+                const unsigned config = w.config[rank];
+                if (config != 0 && config != 255) visit(it.pos(), config);
             }
         }
     });
