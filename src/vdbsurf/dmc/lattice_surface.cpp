@@ -492,6 +492,7 @@ const SurfaceStats& LatticeSurface::stats() const { return mImpl->stats; }
 
 void LatticeSurface::forEachSurfaceCell(const std::function<void(const CellCrossings&)>& fn, bool onlySharpCandidates) const {
     const Impl& im = *mImpl;
+    if (im.meshTaken) throw std::logic_error("LatticeSurface: cells visited after the mesh was taken");
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, im.work.size(), 8), [&](const tbb::blocked_range<std::size_t>& r) {
         std::array<Vec3f, 12> pos, nrm;
         for (std::size_t li = r.begin(); li < r.end(); ++li) {
@@ -752,6 +753,11 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
             rounded.push_back(r != w.roundedVertices.end() && *r == local);
         }
     }
+    // The leaves' own arrays (several a leaf) are done with: freed now and in parallel, they
+    // were a serial tail of the mesher, and the weld below reuses their memory.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t li = r.begin(); li < r.end(); ++li) im.work[li] = LeafWork();
+    });
     if (beforeWeld) {
         std::vector<std::uint32_t> toWeld(atNode.size());
         for (std::size_t i = 0; i < atNode.size(); ++i) toWeld[i] = atNode[i].first;

@@ -93,7 +93,8 @@ public:
     // The mesh: polygons oriented with normals from inside to outside. `beforeWeld`, if given,
     // may refine the polygons before the crossings at nodes are welded; it is told which vertices
     // the weld will join (crossings at a node), and must keep every vertex in place and numbered
-    // as it was, only appending new ones.
+    // as it was, only appending new ones. Once only: the surface's own data is freed then, and
+    // stats() alone stays.
     Mesh mesh(const std::function<void(Mesh&, const std::vector<std::uint32_t>&)>& beforeWeld = {});
     const SurfaceStats& stats() const;
 
