@@ -130,12 +130,21 @@ bool anyActiveNode(Accessor& acc, const Coord& origin) {
     return false;
 }
 
+// Marks, in `cells` (word x, bit 8 y + z), the leaf's cells that have node (x, y, z) of the leaf's
+// 9^3 block as a corner.
+inline void markCellsAround(int x, int y, int z, std::array<std::uint64_t, 8>& cells) {
+    for (int cx = std::max(x - 1, 0); cx <= std::min(x, 7); ++cx)
+        for (int cy = std::max(y - 1, 0); cy <= std::min(y, 7); ++cy)
+            for (int cz = std::max(z - 1, 0); cz <= std::min(z, 7); ++cz) cells[std::size_t(cx)] |= std::uint64_t(1) << (8 * cy + cz);
+}
+
 // The nodes of the leaf at `origin` (its 9^3 block, by leafNodeIndex) that are active in a
-// node-mask tree; false if none is. One probe per 8^3 block of the tree and its few active bits,
-// instead of a tree probe per node asked about.
+// node-mask tree, and the leaf's cells that have one as a corner; false if none is. One probe per
+// 8^3 block of the tree and its few active bits, instead of a tree probe per node asked about.
 template <typename Accessor>
-bool activeLeafNodes(Accessor& acc, const Coord& origin, std::bitset<kLeafNodeCount>& on) {
+bool activeLeafNodes(Accessor& acc, const Coord& origin, std::bitset<kLeafNodeCount>& on, std::array<std::uint64_t, 8>& cells) {
     on.reset();
+    cells.fill(0);
     bool any = false;
     for (int d = 0; d < 8; ++d) {
         const Coord lo = nodeBlock(origin, d);
@@ -148,12 +157,16 @@ bool activeLeafNodes(Accessor& acc, const Coord& origin, std::bitset<kLeafNodeCo
                 const int pos = int(it.pos()), x = pos >> 6, y = (pos >> 3) & 7, z = pos & 7;
                 if (x >= nx || y >= ny || z >= nz) continue;
                 on.set(std::size_t(leafNodeIndex(rx + x, ry + y, rz + z)));
+                markCellsAround(rx + x, ry + y, rz + z, cells);
                 any = true;
             }
         } else if (acc.isValueOn(lo)) {
             for (int z = 0; z < nz; ++z)
                 for (int y = 0; y < ny; ++y)
-                    for (int x = 0; x < nx; ++x) on.set(std::size_t(leafNodeIndex(rx + x, ry + y, rz + z)));
+                    for (int x = 0; x < nx; ++x) {
+                        on.set(std::size_t(leafNodeIndex(rx + x, ry + y, rz + z)));
+                        markCellsAround(rx + x, ry + y, rz + z, cells);
+                    }
             any = true;
         }
     }
@@ -584,6 +597,7 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
         openvdb::tree::ValueAccessor<const NodeMaskTree, false> onSurface(*deformation.onSurface);
         openvdb::tree::ValueAccessor<const OffsetTree, false> offsets(*deformation.offsets);
         std::bitset<kLeafNodeCount> featureNode;
+        std::array<std::uint64_t, 8> nearFeature; // cells with a feature node as a corner
         auto placed = [&](const Coord& n) {
             const openvdb::Vec3f o = offsets.getValue(n);
             return Vec3f(frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(o.x(), o.y(), o.z()));
@@ -592,7 +606,7 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
             LeafWork& w = im.work[li];
             if (w.vertices.empty()) continue;
             // Only nodes of this leaf's block (origin .. origin + 8) can be edge ends here.
-            if (!activeLeafNodes(onSurface, w.origin, featureNode)) continue;
+            if (!activeLeafNodes(onSurface, w.origin, featureNode, nearFeature)) continue;
             auto onFeature = [&](const Coord& n) {
                 const Coord d = n - w.origin;
                 return featureNode.test(std::size_t(leafNodeIndex(d.x(), d.y(), d.z())));
@@ -601,12 +615,18 @@ std::uint64_t LatticeSurface::moveCrossingsToFeatureNodes(const LatticeDeformati
             std::vector<std::pair<std::uint32_t, Coord>> atDataNode(w.nodeVertices.begin(), w.nodeVertices.end());
             std::sort(atDataNode.begin(), atDataNode.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
             std::vector<std::pair<std::uint32_t, Coord>> toFirstEnd; // data-node vertices moved to the edge's first end
+            // An edge's ends are corners of the cell that owns its crossing: only cells with a
+            // feature node as a corner can hold one that moves (or a data-node vertex that
+            // follows a node). Those, in the leaf's order.
             const MaskLeaf& leaf = im.leafManager.leaf(li);
-            std::size_t rank = 0;
-            for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
+            for (int word = 0; word < 8; ++word)
+                for (std::uint64_t bits = nearFeature[std::size_t(word)] & leaf.getValueMask().template getWord<std::uint64_t>(openvdb::Index(word));
+                     bits; bits &= bits - 1) {
+                const openvdb::Index offset = openvdb::Index(64 * word + __builtin_ctzll(bits));
+                const std::uint32_t rank = cellRank(leaf, w, offset);
                 const std::uint16_t owned = w.ownedEdges[rank];
                 if (!owned || w.config[rank] == 0 || w.config[rank] == 255) continue;
-                const int off = int(it.pos());
+                const int off = int(offset);
                 const Coord cell = w.origin.offsetBy(off >> 6, (off >> 3) & 7, off & 7);
                 std::uint32_t local = w.vertexPrefix[rank];
                 for (int e = 0; e < 12; ++e) {
