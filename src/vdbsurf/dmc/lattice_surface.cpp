@@ -441,8 +441,8 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 if (options.normals) {
                     bool candidate = true;
                     if (nodeGradients) {
-                        bool anyMoved = false;
-                        for (int c = 0; c < 8 && !anyMoved; ++c) anyMoved = moved[std::size_t(leafCornerIndex(it.pos(), c))] != 0;
+                        bool anyMoved = false; // (none where the leaf's nodes all stand at rest)
+                        for (int c = 0; c < 8 && leafMoved && !anyMoved; ++c) anyMoved = moved[std::size_t(leafCornerIndex(it.pos(), c))] != 0;
                         if (!anyMoved) candidate = gradients.mayHoldSharpEdge(x, y, z, edgeLimit);
                     }
                     if (candidate) sharpCells.push_back(std::uint32_t(off) << 16 | std::uint32_t(rank));
