@@ -30,6 +30,23 @@ struct MinMax {
     void add(const MinMax& o) { lo = std::min(lo, o.lo); hi = std::max(hi, o.hi); }
 };
 
+// Visitors of TypedGrid::visitRange: the range of a box's values, and whether it straddles iso.
+struct RangeOf {
+    static constexpr bool kWholeMayServe = false;
+    MinMax& mm;
+    bool add(double v) { return mm.add(v), false; }
+    bool add(const MinMax& r) { return mm.add(r), false; }
+};
+struct StraddleOf {
+    static constexpr bool kWholeMayServe = true;
+    double iso, clear; // clear: the widest tolerance straddles() gives a range of the grid's values
+    MinMax mm;
+    bool straddles() const { return vdbsurf::straddles({mm.lo, mm.hi}, iso); }
+    bool add(double v) { return mm.add(v), straddles(); }
+    bool add(const MinMax& r) { return mm.add(r), straddles(); }
+    bool wholeServes(const MinMax& r) const { return r.lo - clear > iso || r.hi + clear < iso; }
+};
+
 Vec3d toVec(const openvdb::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
 openvdb::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
 
@@ -803,19 +820,8 @@ private:
     // Min/max of every value in the index box, from cached node summaries where a node lies
     // wholly inside the box.
     void query(const CoordBBox& box, MinMax& mm) const {
-        if (!box.hasOverlap(mIndexValues)) { mm.add(double(mTree.background())); return; }
-        const RootT& root = mTree.root();
-        constexpr int D = int(Node2T::DIM);
-        const Coord lo = box.min() & ~(D - 1), hi = box.max() & ~(D - 1);
-        const std::int64_t count = std::int64_t((hi.x() - lo.x()) / D + 1) * ((hi.y() - lo.y()) / D + 1) * ((hi.z() - lo.z()) / D + 1);
-        if (count > 512) { mm.add(mAll); return; }
-        for (int x = lo.x(); x <= hi.x(); x += D)
-            for (int y = lo.y(); y <= hi.y(); y += D)
-                for (int z = lo.z(); z <= hi.z(); z += D) {
-                    const Coord c(x, y, z);
-                    if (const Node2T* n2 = root.template probeConstNode<Node2T>(c)) queryInternal(*n2, box, mm);
-                    else mm.add(double(root.getValue(c)));
-                }
+        RangeOf collect{mm};
+        visitRange(box, collect);
     }
 
     // straddles(range of query(box), iso), the same answer sooner: it stops at the first proof (a
@@ -826,83 +832,65 @@ private:
     // and a block at the grid's voxel size reads a one-voxel slab of seven neighbouring leaves:
     // those reads were a tenth of marching cubes' time on the armadillo.
     bool queryStraddles(const CoordBBox& box, double iso) const {
-        if (!box.hasOverlap(mIndexValues)) return straddles({double(mTree.background()), double(mTree.background())}, iso);
+        StraddleOf q{iso, boundsTolerance({mAll.lo, mAll.hi}, iso), {}};
+        return visitRange(box, q) || q.straddles();
+    }
+
+    // The values in the index box, as ranges handed to v.add (a range or one value; true stops the
+    // walk, and visitRange returns true): a node the box holds whole gives its cached range, and so
+    // does one it holds in part where the visitor may take that (kWholeMayServe) and wholeServes
+    // says so; a box over more than 512 root children gives the whole grid's range.
+    template <typename Visitor>
+    bool visitRange(const CoordBBox& box, Visitor& v) const {
+        if (!box.hasOverlap(mIndexValues)) return v.add(double(mTree.background()));
+        const RootT& root = mTree.root();
         constexpr int D = int(Node2T::DIM);
         const Coord lo = box.min() & ~(D - 1), hi = box.max() & ~(D - 1);
         const std::int64_t count = std::int64_t((hi.x() - lo.x()) / D + 1) * ((hi.y() - lo.y()) / D + 1) * ((hi.z() - lo.z()) / D + 1);
-        if (count > 512) return straddles({mAll.lo, mAll.hi}, iso);
-        StraddleQuery q{box, iso, boundsTolerance({mAll.lo, mAll.hi}, iso), {}};
-        const RootT& root = mTree.root();
+        if (count > 512) return v.add(mAll);
         for (int x = lo.x(); x <= hi.x(); x += D)
             for (int y = lo.y(); y <= hi.y(); y += D)
                 for (int z = lo.z(); z <= hi.z(); z += D) {
                     const Coord c(x, y, z);
-                    if (const Node2T* n2 = root.template probeConstNode<Node2T>(c)) {
-                        if (straddlesInNode(*n2, q)) return true;
-                    } else if (q.add(double(root.getValue(c)))) {
-                        return true;
-                    }
+                    const Node2T* n2 = root.template probeConstNode<Node2T>(c);
+                    if (n2 ? visitNode(*n2, box, v) : v.add(double(root.getValue(c)))) return true;
                 }
-        return q.straddles();
+        return false;
     }
 
-    struct StraddleQuery {
-        CoordBBox box;
-        double iso, clear; // clear: the widest tolerance straddles() gives a range of this grid's values
-        MinMax mm;
-        bool straddles() const { return vdbsurf::straddles({mm.lo, mm.hi}, iso); }
-        bool add(double v) { return mm.add(v), straddles(); }
-        bool add(const MinMax& r) { return mm.add(r), straddles(); }
-        bool oneSide(const MinMax& r) const { return r.lo - clear > iso || r.hi + clear < iso; }
-    };
+    // The node's whole cached range, if the visitor takes it here (see visitRange).
+    template <typename NodeT, typename Visitor>
+    const MinMax* wholeRange(const NodeT& node, const CoordBBox& box, const Visitor& v) const {
+        if (contains(box, node.getNodeBoundingBox())) return &mCache.at(&node);
+        if constexpr (Visitor::kWholeMayServe) {
+            const MinMax& whole = mCache.at(&node);
+            if (v.wholeServes(whole)) return &whole;
+        }
+        return nullptr;
+    }
 
-    template <typename NodeT>
-    bool straddlesInNode(const NodeT& node, StraddleQuery& q) const {
-        const MinMax& whole = mCache.at(&node);
-        if (contains(q.box, node.getNodeBoundingBox()) || q.oneSide(whole)) return q.add(whole);
-        return anySlot(node, q.box, [&](openvdb::Index n) {
-            if (!node.isChildMaskOn(n)) return q.add(double(node.getTable()[n].getValue()));
+    template <typename NodeT, typename Visitor>
+    bool visitNode(const NodeT& node, const CoordBBox& box, Visitor& v) const {
+        if (const MinMax* whole = wholeRange(node, box, v)) return v.add(*whole);
+        return anySlot(node, box, [&](openvdb::Index n) {
+            if (!node.isChildMaskOn(n)) return v.add(double(node.getTable()[n].getValue()));
             const auto& child = *node.getTable()[n].getChild();
-            if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) return straddlesInLeaf(child, q);
-            else return straddlesInNode(child, q);
+            if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) return visitLeaf(child, box, v);
+            else return visitNode(child, box, v);
         });
     }
 
-    bool straddlesInLeaf(const LeafT& leaf, StraddleQuery& q) const {
-        const MinMax& whole = mCache.at(&leaf);
-        const CoordBBox nb = leaf.getNodeBoundingBox();
-        if (contains(q.box, nb) || q.oneSide(whole)) return q.add(whole);
-        CoordBBox in = nb;
-        in.intersect(q.box);
+    template <typename Visitor>
+    bool visitLeaf(const LeafT& leaf, const CoordBBox& box, Visitor& v) const {
+        if (const MinMax* whole = wholeRange(leaf, box, v)) return v.add(*whole);
+        CoordBBox in = leaf.getNodeBoundingBox();
+        in.intersect(box);
         const auto* data = leaf.buffer().data();
         MinMax part;
         for (int x = in.min().x(); x <= in.max().x(); ++x)
             for (int y = in.min().y(); y <= in.max().y(); ++y)
                 for (int z = in.min().z(); z <= in.max().z(); ++z) part.add(double(data[LeafT::coordToOffset(Coord(x, y, z))]));
-        return q.add(part);
-    }
-
-    template <typename NodeT>
-    void queryInternal(const NodeT& node, const CoordBBox& box, MinMax& mm) const {
-        const CoordBBox nb = node.getNodeBoundingBox();
-        if (contains(box, nb)) { mm.add(mCache.at(&node)); return; }
-        anySlot(node, box, [&](openvdb::Index n) {
-            if (!node.isChildMaskOn(n)) mm.add(double(node.getTable()[n].getValue()));
-            else if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) queryLeaf(*node.getTable()[n].getChild(), box, mm);
-            else queryInternal(*node.getTable()[n].getChild(), box, mm);
-            return false;
-        });
-    }
-
-    void queryLeaf(const LeafT& leaf, const CoordBBox& box, MinMax& mm) const {
-        const CoordBBox nb = leaf.getNodeBoundingBox();
-        if (contains(box, nb)) { mm.add(mCache.at(&leaf)); return; }
-        CoordBBox in = nb;
-        in.intersect(box);
-        const auto* data = leaf.buffer().data();
-        for (int x = in.min().x(); x <= in.max().x(); ++x)
-            for (int y = in.min().y(); y <= in.max().y(); ++y)
-                for (int z = in.min().z(); z <= in.max().z(); ++z) mm.add(double(data[LeafT::coordToOffset(Coord(x, y, z))]));
+        return v.add(part);
     }
 
     typename GridT::ConstPtr mGrid;
