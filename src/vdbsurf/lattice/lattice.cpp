@@ -186,7 +186,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
                     const double* column = &vals[std::size_t(x + kBlockNodes * y)];
                     for (int z = 0; z < kBlockNodes; ++z) {
                         const double v = column[std::size_t(kBlockNodes * kBlockNodes * z)];
-                        in |= unsigned(side == Inside::Below ? v < iso : v > iso) << z;
+                        in |= unsigned(isInside(v, iso, side)) << z;
                         eq |= unsigned(v == iso) << z;
                         nan |= unsigned(v != v) << z;
                     }
