@@ -553,6 +553,76 @@ void writeWithCompression(const std::string& path, openvdb::GridBase::Ptr grid, 
 
 } // namespace
 
+TEST_CASE("the first NaN or infinity in tree order is the one named, wherever in the tree it lies") {
+    initializeOpenVdb();
+    // Voxels in two leaves: the one first in the tree is named, whichever was set first.
+    auto voxels = openvdb::FloatGrid::create(0.f);
+    voxels->tree().setValue({600, 0, 0}, std::numeric_limits<float>::infinity());
+    voxels->tree().setValue({3, 4, 5}, std::numeric_limits<float>::quiet_NaN());
+    CHECK_THROWS_WITH(GridField(voxels, "v"), Catch::Contains("NaN") && Catch::Contains("(3, 4, 5)"));
+    // A tile of an upper node (128³, slot 1 of its node) against an 8³ tile in a lower node
+    // before it (slot 0) and after it (slot 2): the upper node's tiles are read in chunks apart
+    // from its children, and the order between them still decides.
+    for (const bool lowerFirst : {true, false}) {
+        auto g = openvdb::FloatGrid::create(0.f);
+        g->tree().setValue({-5, -5, -5}, 1.0f);
+        g->tree().addTile(2, {0, 0, 128}, std::numeric_limits<float>::quiet_NaN(), true);
+        g->tree().addTile(1, {0, 0, lowerFirst ? 8 : 256}, std::numeric_limits<float>::infinity(), false);
+        INFO("lower node's tile first: " << lowerFirst);
+        if (lowerFirst) CHECK_THROWS_WITH(GridField(g, "t"), Catch::Contains("infinite") && Catch::Contains("tile at (0, 0, 8)"));
+        else CHECK_THROWS_WITH(GridField(g, "t"), Catch::Contains("NaN") && Catch::Contains("tile at (0, 0, 128)"));
+    }
+}
+
+TEST_CASE("the value range is the least and greatest value the tree holds, float and double grids") {
+    initializeOpenVdb();
+    auto check = [](auto grid) {
+        using ValueT = typename std::decay_t<decltype(*grid)>::ValueType;
+        std::mt19937 rng(11);
+        std::uniform_real_distribution<double> u(-1.0, 1.0);
+        auto acc = grid->getAccessor();
+        for (int i = -20; i < 20; ++i) // eight upper nodes meet at the origin
+            for (int j = -20; j < 20; ++j)
+                for (int k = -20; k < 20; ++k) acc.setValue({i, j, k}, ValueT(u(rng)));
+        // The extremes at the last values of a leaf's rows, where the last lanes read them.
+        acc.setValue({-9, 3, 7}, ValueT(-7.5));
+        acc.setValue({12, -2, -2}, ValueT(9.25));
+        grid->tree().addTile(1, {512, 0, 0}, ValueT(3.0), false);
+        GridField f(grid, "g");
+        CHECK(f.valueRange().lo == -7.5);
+        CHECK(f.valueRange().hi == 9.25);
+        // A box over whole leaves reads their cached ranges; one inside a leaf, its voxels.
+        CHECK(f.bounds(Box3{{-16, -16, -16}, {15, 15, 15}}).lo == Approx(-7.5));
+        CHECK(f.bounds(Box3{{8, -8, -8}, {15, -1, -1}}).hi == Approx(9.25));
+        CHECK(f.bounds(Box3{{9, 1, 1}, {10, 2, 2}}).hi < 1.0);
+        CHECK(f.bounds(Box3{{513, 1, 1}, {514, 2, 2}}).hi == Approx(3.0));
+    };
+    auto fog = openvdb::FloatGrid::create(0.f);
+    check(fog);
+    auto dbl = openvdb::DoubleGrid::create(0.0);
+    check(dbl);
+}
+
+TEST_CASE("the domain of a grid is the box of its active voxels, voxel for voxel") {
+    initializeOpenVdb();
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> coord(-40, 40), count(1, 4);
+    for (int trial = 0; trial < 200; ++trial) {
+        auto g = openvdb::FloatGrid::create(1.f);
+        g->setGridClass(openvdb::GRID_LEVEL_SET); // the domain is the active voxels' box, not one voxel out
+        for (int n = count(rng); n > 0; --n) g->tree().setValueOn({coord(rng), coord(rng), coord(rng)}, -0.5f);
+        const openvdb::CoordBBox expected = g->evalActiveVoxelBoundingBox();
+        const Box3 d = GridField(g, "g").domain();
+        INFO("trial " << trial);
+        CHECK(d.min.x == expected.min().x());
+        CHECK(d.min.y == expected.min().y());
+        CHECK(d.min.z == expected.min().z());
+        CHECK(d.max.x == expected.max().x());
+        CHECK(d.max.y == expected.max().y());
+        CHECK(d.max.z == expected.max().z());
+    }
+}
+
 TEST_CASE("every tree layout OpenVDB writes is read: value types, half floats, compressions") {
     initializeOpenVdb();
     test::TempDir dir;

@@ -1,5 +1,7 @@
 #include "vdbsurf/field/grid_field.h"
 
+#include "vdbsurf/field/tree_ranges.h"
+
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/vdb/voxel_transform.h"
 
@@ -12,9 +14,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
-#include <unordered_map>
 
 namespace vdbsurf {
 
@@ -23,14 +25,7 @@ namespace {
 using openvdb::Coord;
 using openvdb::CoordBBox;
 
-struct MinMax {
-    double lo = std::numeric_limits<double>::infinity();
-    double hi = -std::numeric_limits<double>::infinity();
-    void add(double v) { lo = std::min(lo, v); hi = std::max(hi, v); }
-    void add(const MinMax& o) { lo = std::min(lo, o.lo); hi = std::max(hi, o.hi); }
-};
-
-// Visitors of TypedGrid::visitRange: the range of a box's values, and whether it straddles iso.
+// Visitors of TreeRanges::visit: the range of a box's values, and whether it straddles iso.
 struct RangeOf {
     static constexpr bool kWholeMayServe = false;
     MinMax& mm;
@@ -49,17 +44,6 @@ struct StraddleOf {
 
 Vec3d toVec(const openvdb::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
 openvdb::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
-
-bool contains(const CoordBBox& outer, const CoordBBox& inner) {
-    return outer.min().x() <= inner.min().x() && outer.min().y() <= inner.min().y() && outer.min().z() <= inner.min().z() &&
-           outer.max().x() >= inner.max().x() && outer.max().y() >= inner.max().y() && outer.max().z() >= inner.max().z();
-}
-
-std::string coordText(const Coord& c) {
-    std::ostringstream s;
-    s << "(" << c.x() << ", " << c.y() << ", " << c.z() << ")";
-    return s.str();
-}
 
 } // namespace
 
@@ -108,7 +92,6 @@ public:
     using LeafT = typename TreeT::LeafNodeType;
     using RootT = typename TreeT::RootNodeType;
     using Node2T = typename RootT::ChildNodeType;
-    using Node1T = typename Node2T::ChildNodeType;
     using Acc = openvdb::tree::ValueAccessor<const TreeT, /*IsSafe=*/false>;
 
     TypedGrid(typename GridT::ConstPtr grid, const std::string& label) : mGrid(std::move(grid)), mTree(mGrid->constTree()) {
@@ -125,14 +108,14 @@ public:
         mVoxel = std::min({vs.x(), vs.y(), vs.z()});
         if (!(mVoxel > 0) || !std::isfinite(mVoxel)) throw Error(label, "has a degenerate transform (voxel size 0)");
         mOrigin = toVec(mGrid->indexToWorld(openvdb::Vec3d(0.0)));
-        computeSummaries(label);
+        mRanges.emplace(mTree, label);
         computeDomain(label);
     }
 
     GridBaseCPtr grid() const override { return mGrid; }
     double voxelSize() const override { return mVoxel; }
     bool axisAligned() const override { return mAxisAligned; }
-    Interval valueRange() const override { return {mAll.lo, mAll.hi}; }
+    Interval valueRange() const override { return {mRanges->all().lo, mRanges->all().hi}; }
     Box3 domain() const override { return mDomain; }
 
     openvdb::Vec3d worldToIndex(const Vec3d& p) const {
@@ -664,26 +647,12 @@ private:
 
     template <typename NodeT>
     bool anyActiveInNode(const NodeT& node, const CoordBBox& box) const {
-        return anySlot(node, box, [&](openvdb::Index n) {
+        return anySlotIn(node, box, [&](openvdb::Index n) {
             if (!node.isChildMaskOn(n)) return node.isValueMaskOn(n);
             const auto& child = *node.getTable()[n].getChild();
             if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) return anyActiveInLeaf(child, box);
             else return anyActiveInNode(child, box);
         });
-    }
-
-    // Calls fn with each table slot of the node that meets the box, until fn returns true.
-    template <typename NodeT, typename Fn>
-    static bool anySlot(const NodeT& node, const CoordBBox& box, Fn&& fn) {
-        CoordBBox in = node.getNodeBoundingBox();
-        in.intersect(box);
-        constexpr int CD = int(NodeT::ChildNodeType::DIM);
-        const Coord lo = in.min() & ~(CD - 1), hi = in.max() & ~(CD - 1);
-        for (int x = lo.x(); x <= hi.x(); x += CD)
-            for (int y = lo.y(); y <= hi.y(); y += CD)
-                for (int z = lo.z(); z <= hi.z(); z += CD)
-                    if (fn(NodeT::coordToOffset(Coord(x, y, z)))) return true;
-        return false;
     }
 
     // A leaf's value mask holds, in word x, byte y, the eight voxels along z.
@@ -701,96 +670,6 @@ private:
         return false;
     }
 
-    // Min/max summaries of every leaf and internal node (for bounds()), the whole grid's range,
-    // and the boxes of the tiles that differ from the background, all and active ones; refuses
-    // non-finite values. The lower internal nodes are summarised in parallel, one task each; the
-    // first bad value in tree order is reported, as a serial walk would.
-    void computeSummaries(const std::string& label) {
-        struct Node1Summary {
-            MinMax mm;
-            std::vector<std::pair<const LeafT*, MinMax>> leaves;
-            CoordBBox tiles, activeTiles; // tiles that differ from the background: all, active ones
-            bool badLeaf = false, badTile = false;
-            Coord badLeafAt, badTileAt;
-            double badLeafValue = 0, badTileValue = 0;
-        };
-        const RootT& root = mTree.root();
-        const double bg = double(root.background());
-        std::vector<const Node1T*> lower;
-        for (auto it2 = root.cbeginChildOn(); it2; ++it2)
-            for (auto it1 = it2->cbeginChildOn(); it1; ++it1) lower.push_back(&*it1);
-        std::vector<Node1Summary> summaries(lower.size());
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, lower.size(), 1), [&](const tbb::blocked_range<std::size_t>& r) {
-            for (std::size_t k = r.begin(); k < r.end(); ++k) {
-                const Node1T& n1 = *lower[k];
-                Node1Summary& sm = summaries[k];
-                for (openvdb::Index i1 = 0; i1 < Node1T::NUM_VALUES; ++i1) {
-                    if (n1.isChildMaskOn(i1)) {
-                        const LeafT& leaf = *n1.getTable()[i1].getChild();
-                        const auto* data = leaf.buffer().data();
-                        MinMax mm;
-                        for (openvdb::Index n = 0; n < LeafT::SIZE; ++n) {
-                            const double v = double(data[n]);
-                            if (!std::isfinite(v) && !sm.badLeaf) sm.badLeaf = true, sm.badLeafAt = leaf.offsetToGlobalCoord(n), sm.badLeafValue = v;
-                            mm.add(v);
-                        }
-                        sm.leaves.emplace_back(&leaf, mm);
-                        sm.mm.add(mm);
-                        continue;
-                    }
-                    const double v = double(n1.getTable()[i1].getValue());
-                    if (!std::isfinite(v) && !sm.badTile) sm.badTile = true, sm.badTileAt = n1.offsetToGlobalCoord(i1), sm.badTileValue = v;
-                    sm.mm.add(v);
-                    if (v != bg) {
-                        const CoordBBox cube = CoordBBox::createCube(n1.offsetToGlobalCoord(i1), int(LeafT::DIM));
-                        sm.tiles.expand(cube);
-                        if (n1.isValueMaskOn(i1)) sm.activeTiles.expand(cube);
-                    }
-                }
-            }
-        });
-        auto refuse = [&](double v, const Coord& at, const char* where) {
-            throw Error(label, std::string("holds ") + (std::isnan(v) ? "NaN" : "an infinite value") + where + coordText(at));
-        };
-        for (const Node1Summary& sm : summaries)
-            if (sm.badLeaf) refuse(sm.badLeafValue, sm.badLeafAt, " at voxel ");
-        if (!std::isfinite(bg)) throw Error(label, "has a NaN or infinite background value");
-        mAll.add(bg);
-        auto tile = [&](double v, const Coord& at, int dim, bool active) {
-            if (!std::isfinite(v)) refuse(v, at, " in the tile at ");
-            if (v == bg) return;
-            mTiles.expand(CoordBBox::createCube(at, dim));
-            if (active) mActiveTiles.expand(CoordBBox::createCube(at, dim));
-        };
-        std::size_t k = 0;
-        for (auto it2 = root.cbeginChildOn(); it2; ++it2) {
-            const Node2T& n2 = *it2;
-            MinMax mm2;
-            for (openvdb::Index i2 = 0; i2 < Node2T::NUM_VALUES; ++i2) {
-                if (n2.isChildMaskOn(i2)) {
-                    const Node1Summary& sm = summaries[k];
-                    if (sm.badTile) refuse(sm.badTileValue, sm.badTileAt, " in the tile at ");
-                    for (const auto& [leaf, mm] : sm.leaves) mCache.emplace(leaf, mm);
-                    mCache.emplace(lower[k], sm.mm);
-                    mm2.add(sm.mm);
-                    mTiles.expand(sm.tiles);
-                    mActiveTiles.expand(sm.activeTiles);
-                    ++k;
-                } else {
-                    const double v = double(n2.getTable()[i2].getValue());
-                    tile(v, n2.offsetToGlobalCoord(i2), int(Node1T::DIM), n2.isValueMaskOn(i2));
-                    mm2.add(v);
-                }
-            }
-            mCache.emplace(&n2, mm2);
-            mAll.add(mm2);
-        }
-        for (auto it = root.cbeginValueAll(); it; ++it) {
-            tile(double(*it), it.getCoord(), int(Node2T::DIM), it.isValueOn());
-            mAll.add(double(*it));
-        }
-    }
-
     // Where values other than the background are stored (for bounds()), and where the grid's
     // data is (the domain): its active voxels and active tiles. Inactive values are the fill
     // between them: a level set's signed flood fill writes them, and where its band is open (a
@@ -803,15 +682,11 @@ private:
     // band holds its surface, and in that voxel a band that ends open has the fill's values,
     // which put a skirt along its edge (up to 22 voxels off a terrain's sheet).
     void computeDomain(const std::string& label) {
-        CoordBBox data = mActiveTiles, values = mTiles;
-        for (auto leaf = mTree.cbeginLeaf(); leaf; ++leaf) {
-            leaf->evalActiveBoundingBox(data, /*visitVoxels=*/true);
-            values.expand(leaf->getNodeBoundingBox());
-        }
-        if (data.empty() || (mGrid->activeVoxelCount() == 0 && mAll.lo == mAll.hi))
+        CoordBBox data = mRanges->activeTiles();
+        data.expand(mRanges->leafActive());
+        const MinMax& all = mRanges->all();
+        if (data.empty() || (all.lo == all.hi && mGrid->activeVoxelCount() == 0))
             throw Error(label, "is empty (no active voxels or tiles)");
-        values.expand(1);
-        mIndexValues = values;
         if (mGrid->getGridClass() != openvdb::GRID_LEVEL_SET) data.expand(1);
         const openvdb::BBoxd wb = mGrid->transform().indexToWorld(CoordBBox(data.min(), data.max()));
         mDomain = {toVec(wb.min()), toVec(wb.max())};
@@ -821,7 +696,7 @@ private:
     // wholly inside the box.
     void query(const CoordBBox& box, MinMax& mm) const {
         RangeOf collect{mm};
-        visitRange(box, collect);
+        mRanges->visit(box, collect);
     }
 
     // straddles(range of query(box), iso), the same answer sooner: it stops at the first proof (a
@@ -832,65 +707,8 @@ private:
     // and a block at the grid's voxel size reads a one-voxel slab of seven neighbouring leaves:
     // those reads were a tenth of marching cubes' time on the armadillo.
     bool queryStraddles(const CoordBBox& box, double iso) const {
-        StraddleOf q{iso, boundsTolerance({mAll.lo, mAll.hi}, iso), {}};
-        return visitRange(box, q) || q.straddles();
-    }
-
-    // The values in the index box, as ranges handed to v.add (a range or one value; true stops the
-    // walk, and visitRange returns true): a node the box holds whole gives its cached range, and so
-    // does one it holds in part where the visitor may take that (kWholeMayServe) and wholeServes
-    // says so; a box over more than 512 root children gives the whole grid's range.
-    template <typename Visitor>
-    bool visitRange(const CoordBBox& box, Visitor& v) const {
-        if (!box.hasOverlap(mIndexValues)) return v.add(double(mTree.background()));
-        const RootT& root = mTree.root();
-        constexpr int D = int(Node2T::DIM);
-        const Coord lo = box.min() & ~(D - 1), hi = box.max() & ~(D - 1);
-        const std::int64_t count = std::int64_t((hi.x() - lo.x()) / D + 1) * ((hi.y() - lo.y()) / D + 1) * ((hi.z() - lo.z()) / D + 1);
-        if (count > 512) return v.add(mAll);
-        for (int x = lo.x(); x <= hi.x(); x += D)
-            for (int y = lo.y(); y <= hi.y(); y += D)
-                for (int z = lo.z(); z <= hi.z(); z += D) {
-                    const Coord c(x, y, z);
-                    const Node2T* n2 = root.template probeConstNode<Node2T>(c);
-                    if (n2 ? visitNode(*n2, box, v) : v.add(double(root.getValue(c)))) return true;
-                }
-        return false;
-    }
-
-    // The node's whole cached range, if the visitor takes it here (see visitRange).
-    template <typename NodeT, typename Visitor>
-    const MinMax* wholeRange(const NodeT& node, const CoordBBox& box, const Visitor& v) const {
-        if (contains(box, node.getNodeBoundingBox())) return &mCache.at(&node);
-        if constexpr (Visitor::kWholeMayServe) {
-            const MinMax& whole = mCache.at(&node);
-            if (v.wholeServes(whole)) return &whole;
-        }
-        return nullptr;
-    }
-
-    template <typename NodeT, typename Visitor>
-    bool visitNode(const NodeT& node, const CoordBBox& box, Visitor& v) const {
-        if (const MinMax* whole = wholeRange(node, box, v)) return v.add(*whole);
-        return anySlot(node, box, [&](openvdb::Index n) {
-            if (!node.isChildMaskOn(n)) return v.add(double(node.getTable()[n].getValue()));
-            const auto& child = *node.getTable()[n].getChild();
-            if constexpr (std::is_same<typename NodeT::ChildNodeType, LeafT>::value) return visitLeaf(child, box, v);
-            else return visitNode(child, box, v);
-        });
-    }
-
-    template <typename Visitor>
-    bool visitLeaf(const LeafT& leaf, const CoordBBox& box, Visitor& v) const {
-        if (const MinMax* whole = wholeRange(leaf, box, v)) return v.add(*whole);
-        CoordBBox in = leaf.getNodeBoundingBox();
-        in.intersect(box);
-        const auto* data = leaf.buffer().data();
-        MinMax part;
-        for (int x = in.min().x(); x <= in.max().x(); ++x)
-            for (int y = in.min().y(); y <= in.max().y(); ++y)
-                for (int z = in.min().z(); z <= in.max().z(); ++z) part.add(double(data[LeafT::coordToOffset(Coord(x, y, z))]));
-        return v.add(part);
+        StraddleOf q{iso, boundsTolerance({mRanges->all().lo, mRanges->all().hi}, iso), {}};
+        return mRanges->visit(box, q) || q.straddles();
     }
 
     typename GridT::ConstPtr mGrid;
@@ -898,10 +716,7 @@ private:
     bool mAxisAligned = false;
     double mVoxel = 1.0;
     Vec3d mOrigin;
-    MinMax mAll;
-    std::unordered_map<const void*, MinMax> mCache;
-    CoordBBox mTiles, mActiveTiles; // index boxes of the tiles that differ from the background: all, active ones
-    CoordBBox mIndexValues; // index box of the values that differ from the background, one voxel out
+    std::optional<TreeRanges<TreeT>> mRanges;
     Box3 mDomain;
 };
 
