@@ -10,6 +10,7 @@
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
+#include <tbb/concurrent_vector.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 
@@ -100,6 +101,14 @@ struct FieldCheck {
     Vec3d behind; // the faces' summed outward normals
 };
 
+// A proposal as the cells record it: its field checks, kept where they wait for a confirmation,
+// and their status (below).
+struct Recorded {
+    Proposal proposal;
+    FieldCheck check;
+    std::uint8_t status;
+};
+
 // A proposal's field checks: not yet made, passed, failed. Made at most once each, on demand by
 // any task; a pure function of the proposal, so a race writes the same value.
 enum : std::uint8_t { kUnchecked = 0, kPassed = 1, kFailed = 2 };
@@ -150,16 +159,19 @@ double distanceToLine(const Vec3d& q, const Vec3d& p, const Vec3d& dir) {
 // either side; the checks are asked for only where the geometry confirms, so most proposals of a
 // noisy surface never need them. Order kept; decided in parallel, the result does not depend on
 // the threads.
-template <typename Passes>
-std::vector<Proposal> confirmedByNeighbours(const std::vector<Proposal>& all, double h, const Passes& passes) {
+template <typename ProposalAt, typename Passes>
+std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt& at, double h, const Passes& passes) {
     struct Seen { // what a confirming proposal needs, packed and ordered by cell
         Coord cell;
         int kind;
         Vec3d point, direction;
         std::size_t index;
     };
-    std::vector<Seen> seen(all.size());
-    for (std::size_t i = 0; i < all.size(); ++i) seen[i] = {all[i].cell, all[i].kind, all[i].point, all[i].direction, i};
+    std::vector<Seen> seen(count);
+    for (std::size_t i = 0; i < count; ++i) {
+        const Proposal& p = at(i);
+        seen[i] = {p.cell, p.kind, p.point, p.direction, i};
+    }
     std::sort(seen.begin(), seen.end(), [](const Seen& x, const Seen& y) { return x.cell < y.cell; });
     const double tolerance = kOnConfirmedLine * h;
     auto confirms = [&](const Seen& q, const Seen& p) {
@@ -175,7 +187,7 @@ std::vector<Proposal> confirmedByNeighbours(const std::vector<Proposal>& all, do
         const double t = dot(cross(d, q.direction), n) / n2, u = dot(cross(d, p.direction), n) / n2; // where they meet
         return std::fabs(t) <= kCurvedEdgeReach * h && std::fabs(u) <= kCurvedEdgeReach * h;
     };
-    std::vector<std::uint8_t> keep(all.size(), 0);
+    std::vector<std::uint8_t> keep(count, 0);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, seen.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
         // Cells are ordered x, y, z: the three cells of one (x, y) column are adjacent, and the
         // first of each of the nine columns around a cell moves forward as the cell does, so
@@ -206,8 +218,8 @@ std::vector<Proposal> confirmedByNeighbours(const std::vector<Proposal>& all, do
         }
     });
     std::vector<Proposal> kept;
-    for (std::size_t i = 0; i < all.size(); ++i)
-        if (keep[i]) kept.push_back(all[i]);
+    for (std::size_t i = 0; i < count; ++i)
+        if (keep[i]) kept.push_back(at(i));
     return kept;
 }
 
@@ -309,10 +321,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     const double h = frame.h, iso = options.iso;
     const Inside side = field.inside();
 
+    // The proposals of all cells, in no particular order (every step after sorts what it keeps).
+    // One growing list in segments: per-task lists merged after were three copies of the
+    // proposals' memory (growth, merge), each page of it a fault on fresh memory, and on a noisy
+    // surface (the armadillo) most proposals fail later.
+    tbb::concurrent_vector<Recorded> recorded;
     struct Local {
-        std::vector<Proposal> proposals;
-        std::vector<FieldCheck> checks;      // per proposal: its field checks, when deferred
-        std::vector<std::uint8_t> status;    // per proposal: kPassed, or kUnchecked (deferred)
         std::uint64_t edgeCells = 0, cornerCells = 0, rejected = 0;
         Vec3d c[12], n[12]; // one cell's crossings and normals (here: not cleared for every cell)
     };
@@ -392,9 +406,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 ++local.rejected;
                 return false;
             }
-            local.proposals.push_back(p);
-            local.checks.push_back(defer ? check : FieldCheck());
-            local.status.push_back(defer ? kUnchecked : kPassed);
+            recorded.push_back({p, defer ? check : FieldCheck(), defer ? kUnchecked : kPassed});
             return true;
         };
         // A corner where the planes of crossings i, j, k meet, for the cell corner nearest it.
@@ -536,32 +548,25 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     }, /*onlySharpCandidates=*/true);
 
     SharpStats out;
-    std::vector<Proposal> proposals;
-    std::vector<FieldCheck> checks;
     for (Local& l : locals) {
-        proposals.insert(proposals.end(), l.proposals.begin(), l.proposals.end());
-        checks.insert(checks.end(), l.checks.begin(), l.checks.end());
         out.edgeCells += l.edgeCells;
         out.cornerCells += l.cornerCells;
         out.rejected += l.rejected;
     }
-    std::vector<std::atomic<std::uint8_t>> status(proposals.size());
-    {
-        std::size_t i = 0; // in the order the proposals were merged
-        for (const Local& l : locals)
-            for (std::uint8_t v : l.status) status[i++].store(v, std::memory_order_relaxed);
-    }
+    std::vector<std::atomic<std::uint8_t>> status(recorded.size());
+    for (std::size_t i = 0; i < recorded.size(); ++i) status[i].store(recorded[i].status, std::memory_order_relaxed);
+    auto proposal = [&](std::size_t i) -> const Proposal& { return recorded[i].proposal; };
     auto passes = [&](std::size_t i) {
         std::uint8_t s = status[i].load(std::memory_order_relaxed);
         if (s == kUnchecked) {
-            s = passesFieldChecks(proposals[i].point, checks[i]) ? kPassed : kFailed;
+            s = passesFieldChecks(recorded[i].proposal.point, recorded[i].check) ? kPassed : kFailed;
             status[i].store(s, std::memory_order_relaxed);
         }
         return s == kPassed;
     };
-    std::vector<Proposal> all = confirmedByNeighbours(proposals, h, passes);
+    std::vector<Proposal> all = confirmedByNeighbours(recorded.size(), proposal, h, passes);
     // (Each proposal not kept was rejected once: by its field checks or for want of a second view.)
-    out.rejected += proposals.size() - all.size();
+    out.rejected += recorded.size() - all.size();
     std::sort(all.begin(), all.end());
     // One proposal a node (the best), then corners before edges, so that an edge node never
     // takes the crossing a corner node needs.
@@ -767,13 +772,13 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     }
     const double lineTolerance = kOnConfirmedLine * h;
     tbb::enumerable_thread_specific<std::vector<Proposal>> alongLocal;
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, recorded.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
         openvdb::tree::ValueAccessor<const OffsetTree> moved(*deformation.offsets);
         openvdb::tree::ValueAccessor<const NodeMaskTree> placed(*deformation.onSurface), near(nearPlaced);
         std::vector<Proposal>& mine = alongLocal.local();
         const Proposal* placedOnLine[64];
         for (std::size_t i = r.begin(); i < r.end(); ++i) {
-            const Proposal& p = proposals[i];
+            const Proposal& p = proposal(i);
             if (p.kind != 1 || !near.isValueOn(block(p.cell))) continue;
             // The candidates' points are other points of this line: a hair of slack for rounding
             // keeps every node the exact test below may accept.
