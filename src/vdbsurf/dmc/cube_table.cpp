@@ -102,9 +102,9 @@ std::array<CubeCase, 256> makeTable() {
 
 } // namespace
 
-const CubeCase& cubeCase(unsigned config) {
+const CubeCase* cubeCaseTable() {
     static const std::array<CubeCase, 256> table = makeTable();
-    return table[config & 255u];
+    return table.data();
 }
 
 } // namespace vdbsurf

@@ -29,7 +29,15 @@ struct CubeCase {
 // Do edges a and b lie on a common face of the cube?
 bool cubeEdgesShareFace(int a, int b);
 
-const CubeCase& cubeCase(unsigned config);
+// The 256 cases, built on first use.
+const CubeCase* cubeCaseTable();
+
+// Inline: a surface cell asks for its case once or more in every pass (a call each was a few
+// percent of marching cubes).
+inline const CubeCase& cubeCase(unsigned config) {
+    static const CubeCase* const table = cubeCaseTable();
+    return table[config & 255u];
+}
 
 constexpr int cubeEdgeAxis(int e) { return e >> 2; }
 

@@ -263,7 +263,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
             offsetAcc = std::make_unique<openvdb::tree::ValueAccessor<const OffsetTree, false>>(*deformation->offsets);
             surfaceAcc = std::make_unique<openvdb::tree::ValueAccessor<const NodeMaskTree, false>>(*deformation->onSurface);
         }
-        std::array<double, kLeafNodeCount> vals;
+        std::array<double, kLeafNodeCount> vals{}; // (zeroed once: the side loop below reads every entry)
         std::array<std::uint8_t, kLeafNodeCount> needed;
         // 0: in place, 1: moved, 2: on a sharp feature (value = iso) counted outside, 3: the same counted inside
         std::array<std::uint8_t, kLeafNodeCount> moved;
@@ -341,9 +341,16 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 return moved[i] ? p + Vec3d(offsets[i]) : p;
             };
 
-            // Each node's side once (a node is a corner of up to eight cells).
-            for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i)
-                inside[i] = needed[i] && (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side));
+            // Each node's side once (a node is a corner of up to eight cells); without a branch a
+            // node where none moved (most leaves).
+            if (leafMoved) {
+                for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i)
+                    inside[i] = needed[i] && (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side));
+            } else if (side == Inside::Below) {
+                for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i) inside[i] = std::uint8_t((needed[i] != 0) & (vals[i] < iso));
+            } else {
+                for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i) inside[i] = std::uint8_t((needed[i] != 0) & (vals[i] > iso));
+            }
             std::size_t rank = 0;
             for (auto it = mask.beginOn(); it; ++it, ++rank) {
                 const int off = int(it.pos()), x = off >> 6, y = (off >> 3) & 7, z = off & 7;
