@@ -166,8 +166,9 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     const std::size_t stride = std::max<std::size_t>(1, blocks.size() / 4096);
     auto examine = [&](const tbb::blocked_range<std::size_t>& r, bool sample) {
         std::array<double, kBlockNodeCount> vals;
-        // Per node column (x, y): bit z set when node (x, y, z) is inside / exactly at iso.
-        std::array<std::uint16_t, kBlockNodes * kBlockNodes> inside, atIso;
+        // Per node column (x, y), at x + kBlockNodes * y as in the sample: bit z set when node
+        // (x, y, z) is inside / exactly at iso / NaN.
+        std::array<std::uint16_t, kBlockNodes * kBlockNodes> inside, atIso, isNan;
         for (std::size_t i = r.begin(); i < r.end(); ++i) {
             if (activeSoFar.load(std::memory_order_relaxed) > maxActive) return;
             if (!sample && i % stride == 0) continue;
@@ -177,23 +178,27 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             box.intersect(cellRange);
             const Coord lo = box.min() - o, hi = box.max() - o;
             field.sampleNodes(frame, toVec(o), {kBlockNodes, kBlockNodes, kBlockNodes}, nullptr, vals.data());
-            // Without a branch a node (a NaN is neither inside nor at iso; the rare block that
-            // holds one is searched for it below).
-            bool anyNan = false;
-            for (int x = 0; x < kBlockNodes; ++x)
-                for (int y = 0; y < kBlockNodes; ++y) {
-                    unsigned in = 0, eq = 0, nan = 0;
-                    const double* column = &vals[std::size_t(x + kBlockNodes * y)];
-                    for (int z = 0; z < kBlockNodes; ++z) {
-                        const double v = column[std::size_t(kBlockNodes * kBlockNodes * z)];
-                        in |= unsigned(isInside(v, iso, side)) << z;
-                        eq |= unsigned(v == iso) << z;
-                        nan |= unsigned(v != v) << z;
-                    }
-                    inside[std::size_t(x * kBlockNodes + y)] = std::uint16_t(in);
-                    atIso[std::size_t(x * kBlockNodes + y)] = std::uint16_t(eq);
-                    anyNan = anyNan || nan != 0;
-                }
+            // Without a branch a node, one z plane at a time over the sample's contiguous columns
+            // (a NaN is neither inside nor at iso; the rare block that holds one is searched for
+            // it below).
+            inside.fill(0);
+            atIso.fill(0);
+            isNan.fill(0);
+            constexpr int kColumns = kBlockNodes * kBlockNodes;
+            const bool below = side == Inside::Below;
+            for (int z = 0; z < kBlockNodes; ++z) {
+                const double* plane = &vals[std::size_t(kColumns * z)];
+                const std::uint16_t bit = std::uint16_t(1u << z);
+                if (below)
+                    for (int c = 0; c < kColumns; ++c) inside[std::size_t(c)] |= plane[c] < iso ? bit : std::uint16_t(0);
+                else
+                    for (int c = 0; c < kColumns; ++c) inside[std::size_t(c)] |= plane[c] > iso ? bit : std::uint16_t(0);
+                for (int c = 0; c < kColumns; ++c) atIso[std::size_t(c)] |= plane[c] == iso ? bit : std::uint16_t(0);
+                for (int c = 0; c < kColumns; ++c) isNan[std::size_t(c)] |= plane[c] != plane[c] ? bit : std::uint16_t(0);
+            }
+            unsigned nans = 0; // (a column array: a reduction straight from the compares does not vectorise)
+            for (int c = 0; c < kColumns; ++c) nans |= isNan[std::size_t(c)];
+            const bool anyNan = nans != 0;
             if (anyNan)
                 for (int x = 0; x < kBlockNodes && nanAt[bi] < 0; ++x)
                     for (int y = 0; y < kBlockNodes && nanAt[bi] < 0; ++y)
@@ -213,7 +218,8 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             for (int x = lo.x(); x <= hi.x(); ++x) {
                 std::uint64_t word = 0;
                 for (int y = lo.y(); y <= hi.y(); ++y) {
-                    const std::size_t a = std::size_t(x * kBlockNodes + y), b = a + kBlockNodes;
+                    // The columns (x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1).
+                    const std::size_t a = std::size_t(x + kBlockNodes * y), b = a + kBlockNodes;
                     const unsigned orIn = inside[a] | inside[a + 1] | inside[b] | inside[b + 1];
                     const unsigned andIn = inside[a] & inside[a + 1] & inside[b] & inside[b + 1];
                     const unsigned orEq = atIso[a] | atIso[a + 1] | atIso[b] | atIso[b + 1];
