@@ -82,15 +82,16 @@ bool finiteRange(const ValueT* data, std::size_t n, MinMax& out) {
 template <typename NodeT>
 struct ChildRanks {
     static constexpr openvdb::Index kWords = NodeT::NUM_VALUES / 64;
+    static_assert(NodeT::NUM_VALUES <= 65536, "counts within a node fit 16 bits");
     std::uint32_t first = 0; // the number of the node's first child
-    std::array<std::uint32_t, kWords> before{};
+    std::array<std::uint16_t, kWords> before{}; // (128 bytes a lower node, 1 KB an upper one)
 
     // Numbers the node's children from `firstChild`; returns how many it has.
     std::uint32_t build(const NodeT& node, std::uint32_t firstChild) {
         first = firstChild;
         std::uint32_t n = 0;
         for (openvdb::Index w = 0; w < kWords; ++w) {
-            before[w] = n;
+            before[w] = std::uint16_t(n);
             n += std::uint32_t(__builtin_popcountll(word(node, w)));
         }
         return n;
