@@ -902,6 +902,20 @@ TEST_CASE("few polygons without area: crossings that round to a node are the nod
             Box3{{-6.5, -6.5, -6.5}, {6.5, 6.5, 6.5}}, voxel);
         checkEveryPolygonHasArea(GridField(grid, "box"), {voxel, 4 * voxel});
     }
+    SECTION("the same box half a million units from the origin, where the float spacing is a quarter voxel") {
+        // There a crossing 0.04 voxels inside a node rounds to the node's point in float though it
+        // lies far beyond kOnNode: the rounding test must still see it (the first pass skips that
+        // test only where a crossing is too far from both ends to round onto either).
+        const double voxel = 0.25, half = 5.5 + 0.01, c = 524288.0;
+        const auto grid = test::makeLevelSetFromDistance(
+            [&](const Vec3d& p) {
+                const Vec3d q(std::fabs(p.x - c) - half, std::fabs(p.y - c) - half, std::fabs(p.z - c) - half);
+                const Vec3d out(std::max(q.x, 0.0), std::max(q.y, 0.0), std::max(q.z, 0.0));
+                return length(out) + std::min(std::max({q.x, q.y, q.z}), 0.0);
+            },
+            Box3{{c - 6.5, c - 6.5, c - 6.5}, {c + 6.5, c + 6.5, c + 6.5}}, voxel);
+        checkEveryPolygonHasArea(GridField(grid, "far box"), {voxel, 4 * voxel});
+    }
     SECTION("the shared sharp cube at its own voxel size and at 4 voxels a cell (DMC and MC)") {
         const std::string path = test::sharedData("vdb/cube_levelset_sharp.vdb");
         if (path.empty()) {

@@ -335,6 +335,19 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                             }
                         }
             }
+            // A crossing on an undeformed edge of a linear field at least this far (as a share of
+            // the edge) from both ends can neither round to a node in float nor lie within kOnNode
+            // of one, so the tests for that are skipped for it: the float rounding reaches at most
+            // 2^-22 of the largest coordinate of the leaf's nodes (taken twice over).
+            double clear = 1.0;
+            if (linear) {
+                const Vec3d lo = frame.nodeWorld(Vec3i(w.origin.x(), w.origin.y(), w.origin.z()));
+                const Vec3d hi = frame.nodeWorld(Vec3i(w.origin.x() + kLeafNodesPerSide - 1, w.origin.y() + kLeafNodesPerSide - 1,
+                                                       w.origin.z() + kLeafNodesPerSide - 1));
+                double largest = 0;
+                for (std::size_t a = 0; a < 3; ++a) largest = std::max({largest, std::fabs(lo[a]), std::fabs(hi[a])});
+                clear = std::max(kOnNode, largest / frame.h * 0x1p-21) + 1e-6;
+            }
             auto nodePos = [&](const Vec3i& local) {
                 const Vec3d p = frame.nodeWorld(Vec3i(w.origin.x() + local.x, w.origin.y() + local.y, w.origin.z() + local.z));
                 const std::size_t i = std::size_t(leafNodeIndex(local.x, local.y, local.z));
@@ -396,9 +409,12 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                     double t;
                     int atEnd = va == iso ? 0 : (vb == iso ? 1 : -1);
                     bool weld = true; // list the vertex for welding at its node
+                    const bool straight = linear && !moved[ia] && !moved[ib];
                     if (atEnd < 0) {
-                        t = linear && !moved[ia] && !moved[ib] ? (iso - va) / (vb - va) : field.edgeCrossing(pa, pb, va, vb, iso);
+                        t = straight ? (iso - va) / (vb - va) : field.edgeCrossing(pa, pb, va, vb, iso);
                         p = pa + (pb - pa) * t;
+                    }
+                    if (atEnd < 0 && !(straight && t > clear && t < 1 - clear)) {
                         const Vec3f rounded(p);
                         const double near = kOnNode * kOnNode * frame.h * frame.h;
                         atEnd = rounded == Vec3f(pa) || dot(p - pa, p - pa) <= near ? 0
