@@ -603,6 +603,17 @@ TEST_CASE("the value range is the least and greatest value the tree holds, float
     check(dbl);
 }
 
+TEST_CASE("a grid changed under its GridField is a programming error, reported rather than read past") {
+    initializeOpenVdb();
+    auto g = openvdb::FloatGrid::create(0.f);
+    g->tree().setValue({0, 0, 0}, 1.0f);
+    g->tree().setValue({8192, 0, 0}, 1.0f);
+    GridField f(g, "g");
+    CHECK(f.bounds(Box3{{4095, -1, -1}, {4100, 1, 1}}).hi == Approx(0.0)); // an empty upper node's space
+    g->tree().setValue({4096, 0, 0}, 2.0f); // a new upper node the ranges never saw
+    CHECK_THROWS_AS(f.bounds(Box3{{4095, -1, -1}, {4100, 1, 1}}), std::logic_error);
+}
+
 TEST_CASE("the domain of a grid is the box of its active voxels, voxel for voxel") {
     initializeOpenVdb();
     std::mt19937 rng(5);

@@ -17,6 +17,7 @@
 #include <cstring>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -302,6 +303,7 @@ private:
 
     const NodeCache<Node2T>& node2Cache(const Node2T* n2) const {
         const auto it = std::lower_bound(mNode2Of.begin(), mNode2Of.end(), std::make_pair(n2, std::uint32_t(0)));
+        if (it == mNode2Of.end() || it->first != n2) throw std::logic_error("TreeRanges: the tree changed after its ranges were read");
         return mNode2[it->second];
     }
 
