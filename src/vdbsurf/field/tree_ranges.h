@@ -32,11 +32,6 @@ struct MinMax {
     void add(const MinMax& o) { lo = std::min(lo, o.lo); hi = std::max(hi, o.hi); }
 };
 
-inline bool boxContains(const openvdb::CoordBBox& outer, const openvdb::CoordBBox& inner) {
-    return outer.min().x() <= inner.min().x() && outer.min().y() <= inner.min().y() && outer.min().z() <= inner.min().z() &&
-           outer.max().x() >= inner.max().x() && outer.max().y() >= inner.max().y() && outer.max().z() >= inner.max().z();
-}
-
 // Calls fn with each table slot of the node that meets the box, until fn returns true.
 template <typename NodeT, typename Fn>
 bool anySlotIn(const NodeT& node, const openvdb::CoordBBox& box, Fn&& fn) {
@@ -331,7 +326,7 @@ private:
 
     template <typename NodeT, typename Visitor>
     static bool takesWhole(const NodeT& node, const MinMax& whole, const CoordBBox& box, const Visitor& v) {
-        if (boxContains(box, node.getNodeBoundingBox())) return true;
+        if (box.isInside(node.getNodeBoundingBox())) return true;
         if constexpr (Visitor::kWholeMayServe) return v.wholeServes(whole);
         return false;
     }
