@@ -1,5 +1,6 @@
 #include "vdbsurf/dmc/node_weld.h"
 
+#include "vdbsurf/core/prefault.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include <tbb/blocked_range.h>
@@ -327,7 +328,7 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
         for (std::size_t v = b; v < e; ++v) kept[c] += used[v].load(std::memory_order_relaxed);
     });
     const std::vector<std::size_t> pointBase = prefixSums(kept);
-    std::vector<std::uint32_t> newId(points, kNone);
+    std::vector<std::uint32_t> newId = prefaultedVector(points, kNone);
     forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
         std::size_t next = pointBase[c];
         for (std::size_t v = b; v < e; ++v)
@@ -398,7 +399,7 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
     if (atNode.empty()) return stats;
 
     // Only polygons through a vertex on a node can change: the attempts below redo just those.
-    std::vector<std::uint8_t> onNode(mesh.points.size(), 0);
+    std::vector<std::uint8_t> onNode = prefaultedVector<std::uint8_t>(mesh.points.size(), 0);
     for (const auto& [v, node] : atNode) onNode[v] = 1;
     std::vector<std::uint32_t> candidates; // ascending
     {
@@ -415,13 +416,13 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
 
     // The representatives, numbered (for grouping corners by welded vertex); later also the other
     // vertices on a node, with their node's number.
-    std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
+    std::vector<std::uint32_t> slot = prefaultedVector(mesh.points.size(), kNone);
     std::size_t slots = 0;
     for (std::uint32_t rep : repOf)
         if (slot[rep] == kNone) slot[rep] = std::uint32_t(slots++);
-    std::vector<std::uint32_t> remap(mesh.points.size());
+    std::vector<std::uint32_t> remap = prefaultedVector<std::uint32_t>(mesh.points.size());
     for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
-    std::vector<std::uint8_t> isRep(mesh.points.size(), 0), apart(slots, 0); // apart: representatives kept apart, by slot
+    std::vector<std::uint8_t> isRep = prefaultedVector<std::uint8_t>(mesh.points.size(), 0), apart(slots, 0); // apart: representatives kept apart, by slot
     for (std::size_t k = 0; k < atNode.size(); ++k) slot[atNode[k].first] = slot[repOf[k]]; // every vertex on a node: its node's
     const std::vector<std::uint32_t> selfPolygons = countSelfPolygons(mesh, candidates, slot, slots);
     std::vector<std::uint8_t> onlyRounded(slots, !rounded.empty()); // nodes whose vertices all rounded to them

@@ -3,6 +3,7 @@
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/planes.h"
+#include "vdbsurf/core/prefault.h"
 #include "vdbsurf/dmc/cube_table.h"
 #include "vdbsurf/dmc/edge_runs.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
@@ -13,6 +14,7 @@
 #include <tbb/concurrent_vector.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_sort.h>
 
 #include <algorithm>
 #include <atomic>
@@ -167,12 +169,17 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
         Vec3d point, direction;
         std::size_t index;
     };
-    std::vector<Seen> seen(count);
-    for (std::size_t i = 0; i < count; ++i) {
-        const Proposal& p = at(i);
-        seen[i] = {p.cell, p.kind, p.point, p.direction, i};
-    }
-    std::sort(seen.begin(), seen.end(), [](const Seen& x, const Seen& y) { return x.cell < y.cell; });
+    // (Fresh memory, ~70 bytes a proposal: mapped, filled and sorted in parallel. The order of
+    // proposals of one cell does not matter: each is decided by all the others.)
+    std::vector<Seen> seen;
+    resizePrefaulted(seen, count);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+            const Proposal& p = at(i);
+            seen[i] = {p.cell, p.kind, p.point, p.direction, i};
+        }
+    });
+    tbb::parallel_sort(seen.begin(), seen.end(), [](const Seen& x, const Seen& y) { return x.cell < y.cell; });
     const double tolerance = kOnConfirmedLine * h;
     auto confirms = [&](const Seen& q, const Seen& p) {
         if (q.kind == 0) return distanceToLine(q.point, p.point, p.direction) <= tolerance; // the edge may end there
@@ -567,11 +574,11 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     std::vector<Proposal> all = confirmedByNeighbours(recorded.size(), proposal, h, passes);
     // (Each proposal not kept was rejected once: by its field checks or for want of a second view.)
     out.rejected += recorded.size() - all.size();
-    std::sort(all.begin(), all.end());
+    tbb::parallel_sort(all.begin(), all.end());
     // One proposal a node (the best), then corners before edges, so that an edge node never
     // takes the crossing a corner node needs.
     all.erase(std::unique(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), all.end());
-    std::stable_sort(all.begin(), all.end(), [](const Proposal& x, const Proposal& y) { return x.kind < y.kind; });
+    std::stable_partition(all.begin(), all.end(), [](const Proposal& x) { return x.kind == 0; });
 
     constexpr int kNeighbours[6] = {4, 10, 12, 14, 16, 22}; // in the 3^3 block around the node
     // Placed on its feature, a node carries the crossings of its edges to the other side: they
@@ -823,7 +830,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     });
     std::vector<Proposal> along;
     for (const std::vector<Proposal>& l : alongLocal) along.insert(along.end(), l.begin(), l.end());
-    std::sort(along.begin(), along.end());
+    tbb::parallel_sort(along.begin(), along.end());
     along.erase(std::unique(along.begin(), along.end(), [](const Proposal& x, const Proposal& y) { return x.node == y.node; }), along.end());
     // The field checks of the first round, for the nearest confirmed line of each node only
     // (decided in parallel; the order stays).

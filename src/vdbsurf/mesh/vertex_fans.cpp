@@ -1,6 +1,7 @@
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/prefault.h"
 #include "vdbsurf/core/union_find.h"
 
 #include <tbb/blocked_range.h>
@@ -89,7 +90,7 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
     candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
     if (candidates.empty()) return;
     constexpr std::uint32_t kNone = ~0u;
-    std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
+    std::vector<std::uint32_t> slot = prefaultedVector(mesh.points.size(), kNone);
     for (std::uint32_t i = 0; i < candidates.size(); ++i) slot[candidates[i]] = i;
     // The corners at each candidate with their polygon neighbours, in polygon order: candidate
     // s owns corners[first[s] .. first[s + 1]) (counted, then filled: no vector per candidate).
