@@ -241,7 +241,7 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
 
     const std::size_t leafCount = leafManager.leafCount();
     if (!only) {
-        work.resize(leafCount);
+        resizePrefaulted(work, leafCount); // (~300 bytes a leaf of fresh memory)
         indexOf.clear();
         indexOf.reserve(leafCount * 2);
         for (std::size_t i = 0; i < leafCount; ++i) indexOf.emplace(&leafManager.leaf(i), std::int32_t(i));
