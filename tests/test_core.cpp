@@ -42,8 +42,9 @@ TEST_CASE("prefaultPages maps the whole pages of a fresh range and writes nothin
     REQUIRE(residentPages(region, pages * page) == 1);
     for (int threads : {1, 2}) {
         ThreadLimit limit(threads);
-        // The first page is resident now; the range starts mid-page 1 and ends mid-page 298 (of
-        // 0..299): pages 2..297 are its whole pages.
+        // Fresh from page `at` on: the whole region on one thread, its upper half on two.
+        // The range starts mid-page 1 and ends mid-page 298 (of 0..299): pages 2..297 are its
+        // whole pages.
         const std::size_t at = threads == 1 ? 0 : 150;
         madvise(bytes + at * page, (pages - at) * page, MADV_DONTNEED); // fresh again
         std::memset(bytes + page + 100, 7, 10); // data the call must leave alone
