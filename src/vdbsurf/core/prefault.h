@@ -14,17 +14,22 @@ namespace vdbsurf {
 // Only names memory, through the kernel: writes no object. Small ranges are left alone.
 void prefaultPages(void* begin, std::size_t bytes);
 
+// Room for n elements in v, the part past its size mapped in parallel.
+template <typename T, typename A>
+void reservePrefaulted(std::vector<T, A>& v, std::size_t n) {
+    if (n > v.capacity()) v.reserve(n);
+    if (n > v.size()) prefaultPages(v.data() + v.size(), (n - v.size()) * sizeof(T));
+}
+
 // v.resize(n) (or v.resize(n, value)) with the memory it grows into mapped first in parallel.
 template <typename T, typename A>
 void resizePrefaulted(std::vector<T, A>& v, std::size_t n) {
-    if (n > v.capacity()) v.reserve(n);
-    if (n > v.size()) prefaultPages(v.data() + v.size(), (n - v.size()) * sizeof(T));
+    reservePrefaulted(v, n);
     v.resize(n);
 }
 template <typename T, typename A>
 void resizePrefaulted(std::vector<T, A>& v, std::size_t n, const T& value) {
-    if (n > v.capacity()) v.reserve(n);
-    if (n > v.size()) prefaultPages(v.data() + v.size(), (n - v.size()) * sizeof(T));
+    reservePrefaulted(v, n);
     v.resize(n, value);
 }
 
