@@ -9,8 +9,8 @@
 // number of pieces, and at most a tenth of the fine reference's triangles.
 // The same bar on solids with concave sharp edges, the other kind the issue names (at random
 // orientations too): a block with a slot t wide and 2.5 H deep, one with a notch 3 H wide and t
-// deep, a slab with a step t high (its foot a concave edge, its top a convex one), and a cross of three bars 0.3 + t thick (concave edges and
-// corners where they meet).
+// deep, a slab with a step t high (its foot a concave edge, its top a convex one), and a cross
+// of three bars 0.3 + t thick (concave edges and corners where they meet).
 #include "bench_support.h"
 
 #include "vdbsurf/core/threads.h"
@@ -130,7 +130,7 @@ int main(int argc, char** argv) {
     std::vector<double> widths{0.3, 0.6, 1.0};
     std::string json;
     app.add_option("--trials", trials, "Random orientations per shape");
-    app.add_option("--widths", widths, "Thicknesses of the shapes, in lattice spacings H")->delimiter(',')->check(CLI::Range(0.05, 2.0));
+    app.add_option("--widths", widths, "Thicknesses of the thin shapes and sizes of the concave features, in lattice spacings H")->delimiter(',')->check(CLI::Range(0.05, 2.0));
     app.add_option("--json", json, "Write the results as JSON");
     CLI11_PARSE(app, argc, argv);
     ThreadLimit limit(0);
@@ -187,8 +187,8 @@ int main(int argc, char** argv) {
             ++t.byWidth[width].second;
         }
     }
-    std::cout << "bench_thin: thin shapes and solids with concave edges on level sets of voxel H/5 (H = " << H << "), " << trials << " orientations each, "
-              << limit.threads() << " threads\n";
+    std::cout << "bench_thin: thin shapes and solids with concave edges on level sets of voxel H/5 (H = " << H << "), " << trials
+              << " orientations each, " << limit.threads() << " threads\n";
     table.print();
     for (int family = 0; family < 2; ++family) {
         const Tally& t = tally[family];
