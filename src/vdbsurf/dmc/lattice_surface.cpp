@@ -360,10 +360,12 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
             if (leafMoved) {
                 for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i)
                     inside[i] = needed[i] && (moved[i] >= 2 ? moved[i] == 3 : isInside(vals[i], iso, side));
-            } else if (side == Inside::Below) {
-                for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i) inside[i] = std::uint8_t((needed[i] != 0) & (vals[i] < iso));
+            } else if (side == Inside::Below) { // (the side fixed in each loop: one vector compare)
+                for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i)
+                    inside[i] = std::uint8_t((needed[i] != 0) & isInside(vals[i], iso, Inside::Below));
             } else {
-                for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i) inside[i] = std::uint8_t((needed[i] != 0) & (vals[i] > iso));
+                for (std::size_t i = 0; i < std::size_t(kLeafNodeCount); ++i)
+                    inside[i] = std::uint8_t((needed[i] != 0) & isInside(vals[i], iso, Inside::Above));
             }
             std::size_t rank = 0;
             for (auto it = mask.beginOn(); it; ++it, ++rank) {

@@ -189,10 +189,11 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             for (int z = 0; z < kBlockNodes; ++z) {
                 const double* plane = &vals[std::size_t(kColumns * z)];
                 const std::uint16_t bit = std::uint16_t(1u << z);
+                // (The side fixed in each loop, so that each compiles to one vector compare.)
                 if (below)
-                    for (int c = 0; c < kColumns; ++c) inside[std::size_t(c)] |= plane[c] < iso ? bit : std::uint16_t(0);
+                    for (int c = 0; c < kColumns; ++c) inside[std::size_t(c)] |= isInside(plane[c], iso, Inside::Below) ? bit : std::uint16_t(0);
                 else
-                    for (int c = 0; c < kColumns; ++c) inside[std::size_t(c)] |= plane[c] > iso ? bit : std::uint16_t(0);
+                    for (int c = 0; c < kColumns; ++c) inside[std::size_t(c)] |= isInside(plane[c], iso, Inside::Above) ? bit : std::uint16_t(0);
                 for (int c = 0; c < kColumns; ++c) atIso[std::size_t(c)] |= plane[c] == iso ? bit : std::uint16_t(0);
                 for (int c = 0; c < kColumns; ++c) isNan[std::size_t(c)] |= plane[c] != plane[c] ? bit : std::uint16_t(0);
             }
