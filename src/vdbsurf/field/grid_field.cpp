@@ -706,7 +706,7 @@ private:
     // and a block at the grid's voxel size reads a one-voxel slab of seven neighbouring leaves:
     // those reads were a tenth of marching cubes' time on the armadillo.
     bool queryStraddles(const CoordBBox& box, double iso) const {
-        StraddleOf q{iso, boundsTolerance({mRanges->all().lo, mRanges->all().hi}, iso), {}};
+        StraddleOf q{iso, boundsTolerance(valueRange(), iso), {}};
         return mRanges->visit(box, q) || q.straddles();
     }
 

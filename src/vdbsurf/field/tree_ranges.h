@@ -221,14 +221,10 @@ public:
     }
 
     const MinMax& all() const { return mAll; }
-    // Index boxes of the tiles that differ from the background (all, active ones), of the leaves'
-    // nodes and of their active voxels (empty boxes where there are none).
-    const CoordBBox& tiles() const { return mTiles; }
+    // Index boxes of the active tiles that differ from the background and of the leaves' active
+    // voxels (empty boxes where there are none): the grid's data.
     const CoordBBox& activeTiles() const { return mActiveTiles; }
-    const CoordBBox& leafNodes() const { return mLeafNodes; }
     const CoordBBox& leafActive() const { return mLeafActive; }
-    // Where values other than the background are stored, one voxel out (the trilinear support).
-    const CoordBBox& values() const { return mValues; }
 
     // The values in the index box, as ranges handed to v.add (a range or one value; true stops the
     // walk, and visit returns true): a node the box holds whole gives its cached range, and so
@@ -362,7 +358,8 @@ private:
     std::vector<std::pair<const Node2T*, std::uint32_t>> mNode2Of; // sorted by address
     std::vector<NodeCache<Node1T>> mNode1;                         // numbered by ChildRanks
     std::vector<MinMax> mLeaf;                                     // numbered by ChildRanks
-    CoordBBox mTiles, mActiveTiles, mLeafNodes, mLeafActive, mValues;
+    CoordBBox mTiles, mActiveTiles, mLeafNodes, mLeafActive;
+    CoordBBox mValues; // where values other than the background are stored, one voxel out (the trilinear support)
 };
 
 } // namespace vdbsurf
