@@ -9,11 +9,14 @@
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_io.h"
+#include "vdbsurf/reeb/bspline.h"
 #include "vdbsurf/reeb/patch_pipeline.h"
+#include "vdbsurf/reeb/row_zip.h"
 
 #include <catch2/catch.hpp>
 
 #include <cmath>
+#include <map>
 
 using namespace vdbsurf;
 using namespace vdbsurf::reeb;
@@ -254,4 +257,97 @@ TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]")
     }
     CHECK_THROWS_WITH(buildClosedSurface(two, "two.obj"), Catch::Contains("two.obj") && Catch::Contains("non-manifold vertex"));
     CHECK_THROWS_WITH(makeHeightFunction(buildClosedSurface(bowtie, "o.obj"), Vec3d(0, 0, 0)), Catch::Contains("--axis"));
+}
+
+TEST_CASE("subCurve: an end a hair from a knot is cut at the knot, leaving no hair-thin span", "[reeb][bspline]") {
+    // A patch's boundary is cut from a lobe curve at its seam, found as a fraction of a length:
+    // it can land on a knot but for the last bits. The span of that hair, once the part is
+    // mapped onto its share of u, rounded to nothing — a knot equal to the end, past the
+    // degree — and the patch's knot merge failed with an internal error.
+    BSplineCurve curve;
+    curve.knots = clampedUniformKnots(12, 0.0, 1.0); // interior knots j / 9
+    for (int i = 0; i < 12; ++i) curve.ctrl.push_back(Vec3d(std::cos(0.5 * i), std::sin(0.7 * i), 0.1 * i * i));
+    const double knot = curve.knots[8]; // 5 / 9
+    REQUIRE(knot == Approx(5.0 / 9.0));
+    for (const auto& [a, b] : std::vector<std::pair<double, double>>{{0.0, std::nextafter(knot, 1.0)},
+                                                                      {std::nextafter(knot, 0.0), 1.0},
+                                                                      {0.2, knot + 1e-12},
+                                                                      {knot - 1e-12, 0.9}}) {
+        INFO("cut " << a << " .. " << b);
+        const BSplineCurve part = subCurve(curve, a, b);
+        const double span = part.end() - part.begin();
+        REQUIRE(std::count(part.knots.begin(), part.knots.end(), part.begin()) == 4);
+        REQUIRE(std::count(part.knots.begin(), part.knots.end(), part.end()) == 4);
+        for (double k : part.knots)
+            if (k != part.begin() && k != part.end()) CHECK(std::min(k - part.begin(), part.end() - k) > 1e-6 * span);
+        // Still the curve itself over the part.
+        for (int s = 0; s <= 20; ++s) {
+            const double t = part.begin() + span * s / 20;
+            CHECK(length(part.eval(t) - curve.eval(t)) < 1e-12);
+        }
+        // Mapped onto a sliver of u and joined to the rest, as a patch's end curve is, then
+        // refined to the knots it shares with another curve over the same u.
+        const BSplineCurve mapped = reparameterized(part, 0.999, 1.0);
+        const BSplineCurve end = joined({reparameterized(curve, 0.0, 0.999), mapped});
+        const BSplineCurve other = reparameterized(curve, 0.0, 1.0);
+        const std::vector<double> merged = mergeKnots(end.knots, other.knots);
+        CHECK_NOTHROW(refineTo(end, merged));
+        CHECK_NOTHROW(refineTo(other, merged));
+    }
+}
+
+namespace {
+
+// How many triangles use each undirected edge.
+std::map<std::uint64_t, int> edgeUses(const std::vector<std::uint32_t>& tris) {
+    std::map<std::uint64_t, int> uses;
+    for (std::size_t t = 0; t < tris.size(); t += 3)
+        for (int k = 0; k < 3; ++k) ++uses[undirectedEdgeKey(tris[t + k], tris[t + (k + 1) % 3])];
+    return uses;
+}
+
+std::vector<RowVertex> uniformRow(std::uint32_t first, int n) { // closes on its first vertex
+    std::vector<RowVertex> row;
+    for (int i = 0; i < n; ++i) row.push_back({first + std::uint32_t(i), double(i) / n});
+    row.push_back({first, 1.0});
+    return row;
+}
+
+} // namespace
+
+TEST_CASE("zipRows: a row passing twice through a saddle around a narrow lobe stays manifold", "[reeb][patches]") {
+    // An end row (vertices 100…): seam vertex 100, the saddle 102 before and after a lobe far
+    // narrower in u than the interior row's spacing (1/8), as a unit's end with a tiny second
+    // contour has. Each pass through the saddle must fan to its own vertices of the other row.
+    const std::vector<RowVertex> end{{100, 0.0},    {101, 0.3},    {102, 0.5},   {103, 0.5001},
+                                     {104, 0.5002}, {102, 0.5003}, {105, 0.8},   {100, 1.0}};
+    const std::vector<RowVertex> inner = uniformRow(0, 8);
+    for (bool endBelow : {false, true}) {
+        INFO((endBelow ? "end row below" : "end row above"));
+        std::vector<std::uint32_t> tris;
+        if (endBelow) zipRows(end, inner, tris);
+        else zipRows(inner, end, tris);
+        CHECK(tris.size() == 3 * (inner.size() - 1 + end.size() - 1)); // one triangle per step, none degenerate
+        for (const auto& [key, n] : edgeUses(tris)) {
+            INFO("edge " << (key >> 32) << "-" << (key & 0xffffffffu));
+            CHECK(n <= 2);
+        }
+        // Every edge along a row borders one triangle here (the next zip gives its other).
+        const auto uses = edgeUses(tris);
+        for (const auto& row : {end, inner})
+            for (std::size_t k = 0; k + 1 < row.size(); ++k) CHECK(uses.at(undirectedEdgeKey(row[k].id, row[k + 1].id)) == 1);
+    }
+}
+
+TEST_CASE("zipRows: a pole fans to every vertex of the row once", "[reeb][patches]") {
+    const std::vector<RowVertex> pole{{50, 0.0}, {50, 1.0}};
+    const std::vector<RowVertex> inner = uniformRow(0, 8);
+    std::vector<std::uint32_t> tris;
+    zipRows(inner, pole, tris);
+    REQUIRE(tris.size() == 3 * 8);
+    for (std::size_t t = 0; t < tris.size(); t += 3) {
+        CHECK(tris[t] == std::uint32_t(t / 3));
+        CHECK(tris[t + 1] == std::uint32_t((t / 3 + 1) % 8));
+        CHECK(tris[t + 2] == 50);
+    }
 }

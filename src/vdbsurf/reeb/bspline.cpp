@@ -101,6 +101,17 @@ void insertKnot(BSplineCurve& c, double t) {
 
 int multiplicity(const std::vector<double>& U, double t) { return int(std::count(U.begin(), U.end(), t)); }
 
+// A cut a hair from a knot (a seam found as a fraction of a length lands on a knot but for the
+// last bits) would leave a span of that hair, which a change of parameter can round to nothing:
+// a knot repeated past the degree, or equal to an end. Such a cut is made at the knot itself.
+double snappedToKnot(const std::vector<double>& knots, double t) {
+    const double tolerance = 1e-9 * (knots.back() - knots.front());
+    const auto above = std::lower_bound(knots.begin(), knots.end(), t);
+    if (above != knots.end() && *above - t <= tolerance) return *above;
+    if (above != knots.begin() && t - *(above - 1) <= tolerance) return *(above - 1);
+    return t;
+}
+
 } // namespace
 
 BSplineCurve refineTo(const BSplineCurve& curve, const std::vector<double>& target) {
@@ -118,6 +129,8 @@ BSplineCurve refineTo(const BSplineCurve& curve, const std::vector<double>& targ
 }
 
 BSplineCurve subCurve(const BSplineCurve& curve, double a, double b) {
+    a = snappedToKnot(curve.knots, a);
+    b = snappedToKnot(curve.knots, b);
     BSplineCurve c = curve;
     for (double t : {a, b})
         if (t > c.begin() && t < c.end())

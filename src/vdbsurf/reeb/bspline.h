@@ -38,7 +38,8 @@ std::vector<double> mergeKnots(const std::vector<double>& a, const std::vector<d
 
 // The same curve with more knots: every knot of `target` (a superset of the curve's knots).
 BSplineCurve refineTo(const BSplineCurve& curve, const std::vector<double>& target);
-// The part of the curve over [a, b] (inside its interval), exactly, by knot insertion.
+// The part of the curve over [a, b] (inside its interval), exactly, by knot insertion. An end
+// within 1e-9 of the interval's length of a knot is taken at that knot (no hair-thin span).
 BSplineCurve subCurve(const BSplineCurve& curve, double a, double b);
 // The same curve over [a, b] (an affine change of parameter).
 BSplineCurve reparameterized(const BSplineCurve& curve, double a, double b);

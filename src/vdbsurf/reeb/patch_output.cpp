@@ -3,6 +3,7 @@
 #include "vdbsurf/core/atomic_file.h"
 #include "vdbsurf/core/buffered_file.h"
 #include "vdbsurf/mesh/mesh_distance.h"
+#include "vdbsurf/reeb/row_zip.h"
 
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
@@ -15,28 +16,6 @@
 namespace vdbsurf::reeb {
 
 namespace {
-
-struct RowVertex {
-    std::uint32_t id;
-    double u;
-};
-
-// Triangles between two rows running from u = 0 to u = 1 (first and last vertex the same).
-void zip(const std::vector<RowVertex>& a, const std::vector<RowVertex>& b, std::vector<std::uint32_t>& tris) {
-    std::size_t i = 0, j = 0;
-    auto emit = [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-        if (x != y && y != z && z != x) tris.insert(tris.end(), {x, y, z});
-    };
-    while (i + 1 < a.size() || j + 1 < b.size()) {
-        if (j + 1 == b.size() || (i + 1 < a.size() && a[i + 1].u <= b[j + 1].u)) {
-            emit(a[i].id, a[i + 1].id, b[j].id);
-            ++i;
-        } else {
-            emit(a[i].id, b[j + 1].id, b[j].id);
-            ++j;
-        }
-    }
-}
 
 int spans(const std::vector<double>& knots) {
     int n = 0;
@@ -106,7 +85,7 @@ Mesh tessellatePatches(const ReebGraph& g, const PatchSet& set, int density) {
                 }
                 row.push_back({first, 1.0});
             }
-            zip(below, row, tris);
+            zipRows(below, row, tris);
             below = std::move(row);
         }
     }
