@@ -109,6 +109,7 @@ void runCompare(const CompareOptions& o) {
                             {"non_manifold_edges", r.topology.nonManifoldEdges},
                             {"inconsistent_edges", r.topology.inconsistentEdges},
                             {"non_manifold_vertices", r.topology.nonManifoldVertices},
+                            {"folded_vertices", r.topology.foldedVertices},
                             {"closed_manifold_oriented", r.topology.closedManifoldOriented()},
                             {"mesh_samples", r.quality.meshSamples},
                             {"mean_distance", r.quality.meanDistance},

@@ -212,6 +212,7 @@ void runMesh(const MeshOptions& o) {
                            {"welded_vertices", rep.weldedVertices},
                            {"collapsed_polygons", rep.collapsedPolygons},
                            {"split_vertices", rep.splitVertices},
+                           {"folds_closed", rep.foldsClosed},
                            {"fit_edges_split", rep.fitEdgesSplit},
                            {"fit_centres", rep.fitCentres},
                            {"fit_feature_centres", rep.fitFeatureCentres},

@@ -814,6 +814,7 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
     im.stats.weldedVertices = welding.weldedVertices;
     im.stats.collapsedPolygons = welding.collapsedPolygons;
     im.stats.splitVertices = welding.splitVertices;
+    im.stats.foldsClosed = welding.foldsClosed;
     im.stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return mesh;
 }

@@ -203,6 +203,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.weldedVertices = surface->stats().weldedVertices;
     report.collapsedPolygons = surface->stats().collapsedPolygons;
     report.splitVertices = surface->stats().splitVertices;
+    report.foldsClosed = surface->stats().foldsClosed;
     report.secondsMesh = surface->stats().seconds;
     report.cellsWithoutData = lattice.stats.cellsWithoutData;
     if (report.cellsWithoutData > 0) {
@@ -227,6 +228,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         mesh = simplifyThinParts(field, report.frame, where, std::move(mesh), tso, &tss);
         report.simplifyRegionTriangles = tss.regionTriangles;
         report.simplifyCollapses = tss.collapses;
+        report.foldsClosed += tss.foldsClosed;
         report.secondsSimplify = tss.seconds;
     }
 

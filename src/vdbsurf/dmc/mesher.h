@@ -80,6 +80,7 @@ struct MeshReport {
     // edge threshold, so the surface is not resolved there (noise; grids at their voxel size only).
     std::uint64_t unresolvedLeaves = 0;
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
+    std::uint64_t foldsClosed = 0; // by the weld and the thin simplification (mesh/mesh_folds.h)
     // Cells whose values are all the field's fill (LatticeStats::cellsWithoutData), and the polygons
     // left out there: a grid's inactive inside meeting its outside where a band ends open.
     std::uint64_t cellsWithoutData = 0, polygonsWithoutData = 0;

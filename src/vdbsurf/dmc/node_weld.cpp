@@ -1,6 +1,7 @@
 #include "vdbsurf/dmc/node_weld.h"
 
 #include "vdbsurf/core/prefault.h"
+#include "vdbsurf/mesh/mesh_folds.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include <tbb/blocked_range.h>
@@ -497,6 +498,11 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
         for (std::uint32_t rep : repOf)
             if (isRep[rep] && newId[rep] != kNone) welds.push_back(newId[rep]);
         stats.splitVertices = splitFansAt(mesh, std::move(welds), &fromCandidates);
+        // Where the polygons between two others at a vertex collapsed, those two can close its
+        // fan alone, folded onto each other; only polygons that came from candidates can.
+        const FoldStats folds = closeFolds(mesh, std::move(fromCandidates), slot);
+        stats.collapsedPolygons += folds.removedPolygons;
+        stats.foldsClosed = folds.closed;
         return stats;
     }
 }

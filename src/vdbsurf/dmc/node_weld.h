@@ -5,7 +5,8 @@
 // welding a node would make an edge shared by more than two polygons (or twice in one
 // direction), that node keeps its vertices apart, as plain marching cubes would. Where separate
 // fans of polygons then meet at a welded vertex, each further fan gets its own copy, so the mesh
-// stays vertex-manifold. Unused vertices are removed.
+// stays vertex-manifold. Where two polygons are left alone around a vertex, folded onto each
+// other, the fold is closed (mesh/mesh_folds.h). Unused vertices are removed.
 //
 // Only polygons through a node vertex can change; the work is done on them alone, in parallel
 // over fixed chunks, so the output does not depend on the number of threads.
@@ -23,6 +24,7 @@ struct NodeWeldStats {
     std::uint64_t weldedVertices = 0;    // vertices merged into their node's first vertex
     std::uint64_t collapsedPolygons = 0; // polygons that lost their area (pillows included)
     std::uint64_t splitVertices = 0;     // welded vertices given one copy per further fan
+    std::uint64_t foldsClosed = 0;       // vertices whose fan two polygons closed alone (mesh/mesh_folds.h)
 };
 
 // `atNode` lists (vertex, node) for every vertex on a node, in a fixed order: the first vertex

@@ -3,6 +3,7 @@
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/field/field.h"
 #include "vdbsurf/mesh/mesh_distance.h"
+#include "vdbsurf/mesh/mesh_folds.h"
 
 #include <algorithm>
 #include <array>
@@ -434,6 +435,7 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
     std::vector<std::uint32_t> globalOf(n);
     for (std::size_t g = 0; g < localOf.size(); ++g)
         if (localOf[g] != 0xffffffffu) globalOf[localOf[g]] = std::uint32_t(g);
+    std::vector<std::uint32_t> fromRegion; // output polygons that came from the region
     for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
         bool asBefore = !inRegion[p];
         if (!asBefore) {
@@ -442,16 +444,24 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
                 asBefore = simplifier.triangles[t].alive && !simplifier.triangles[t].changed;
         }
         if (asBefore) {
+            if (inRegion[p]) fromRegion.push_back(std::uint32_t(out.polygonCount()));
             out.addPolygon(mesh.polygon(p), mesh.polygonSize(p));
             continue;
         }
         for (std::uint32_t t = firstTriangle[p]; t < firstTriangle[p + 1]; ++t) {
             const Triangle& tr = simplifier.triangles[t];
             if (!tr.alive) continue;
+            fromRegion.push_back(std::uint32_t(out.polygonCount()));
             out.addPolygon({globalOf[tr.v[0]], globalOf[tr.v[1]], globalOf[tr.v[2]]});
         }
     }
-    return timed(keepPolygons(out, std::vector<std::uint8_t>(out.polygonCount(), 1)));
+    // A region polygon whose triangles all stayed goes out whole, without the diagonals the
+    // link condition counted: a vertex beside it can be left with two neighbours, its fan a
+    // collapsed triangle's neighbour folded onto the polygon. Closed here (mesh/mesh_folds.h).
+    out = keepPolygons(out, std::vector<std::uint8_t>(out.polygonCount(), 1));
+    std::vector<std::uint32_t> scratch;
+    st.foldsClosed = closeFolds(out, std::move(fromRegion), scratch).closed;
+    return timed(std::move(out));
 }
 
 } // namespace vdbsurf

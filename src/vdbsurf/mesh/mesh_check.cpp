@@ -1,5 +1,6 @@
 #include "vdbsurf/mesh/mesh_check.h"
 
+#include "vdbsurf/mesh/mesh_folds.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include <algorithm>
@@ -46,6 +47,7 @@ MeshTopology checkTopology(const Mesh& mesh) {
         std::vector<std::uint32_t> all(mesh.points.size());
         std::iota(all.begin(), all.end(), 0u);
         t.nonManifoldVertices = countSplitFans(mesh, std::move(all));
+        t.foldedVertices = countFolds(mesh);
     }
     return t;
 }
