@@ -89,7 +89,7 @@ TEST_CASE("closeFolds: only the listed polygons are looked at", "[folds]") {
     CHECK(checkTopology(m).foldedVertices == 0);
 }
 
-TEST_CASE("closeFolds: a pillow of two triangles goes; a fold whose new edge exists stays", "[folds]") {
+TEST_CASE("closeFolds: a pillow of two triangles goes, and a fold whose new edge exists stays", "[folds]") {
     Mesh pillow;
     pillow.points = {Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0)};
     pillow.addPolygon({0, 1, 2});

@@ -34,7 +34,7 @@ struct ThinSimplifyOptions {
 struct ThinSimplifyStats {
     std::uint64_t regionTriangles = 0; // triangles (polygons fanned) in the thin region before
     std::uint64_t collapses = 0;       // vertices removed
-    std::uint64_t foldsClosed = 0;     // folds left where a polygon went out whole (mesh/mesh_folds.h)
+    std::uint64_t foldsClosed = 0;     // folds closed where a polygon went out whole (mesh/mesh_folds.h)
     double seconds = 0;
 };
 

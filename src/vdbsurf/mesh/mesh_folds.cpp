@@ -16,8 +16,8 @@ struct Fold {
 // The folds among the listed polygons, in list order: each corner is compared with the first
 // one listed at its vertex, which `firstAt` (per vertex: position in the list) remembers. (A
 // vertex with more than two listed polygons and a fold between its second and third is not
-// vertex-manifold; that is not looked for.) One serial pass: a sort of the corners took a
-// millisecond on the armadillo's 9,600 polygons from the weld, this a tenth of that.
+// vertex-manifold; that is not looked for.) One serial pass: on the armadillo's 9,600 polygons
+// from the weld 0.5 ms, where a parallel sort of the corners took 1.2 to 1.7.
 std::vector<Fold> findFolds(const Mesh& mesh, const std::vector<std::uint32_t>& polygons, std::vector<std::uint32_t>& firstAt) {
     if (firstAt.size() < mesh.points.size()) firstAt.resize(mesh.points.size());
     for (std::uint32_t f : polygons)

@@ -2,8 +2,9 @@
 // other) close v's fan between the two of them — a fin of no area, folded over at v. A viewer
 // shows it as a flap; fanning the polygons into triangles turns it into an edge of four
 // triangles, which the Reeb graph, subdivision and most tools refuse. Welding marching-cubes
-// vertices onto lattice nodes leaves one where the polygons between two others collapse.
-// Owns finding and closing them.
+// vertices onto lattice nodes leaves one where the polygons between two others collapse, and
+// the thin simplification where a polygon goes out whole beside a collapse. Owns finding and
+// closing them.
 #pragma once
 #include "vdbsurf/mesh/mesh.h"
 
