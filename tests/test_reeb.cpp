@@ -257,6 +257,16 @@ TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]")
     }
     CHECK_THROWS_WITH(buildClosedSurface(two, "two.obj"), Catch::Contains("two.obj") && Catch::Contains("non-manifold vertex"));
     CHECK_THROWS_WITH(makeHeightFunction(buildClosedSurface(bowtie, "o.obj"), Vec3d(0, 0, 0)), Catch::Contains("--axis"));
+    // The cube with its bottom face [0, 3, 2, 1] as two quads folded at a new vertex 8 between 0
+    // and 2: closed and manifold, but vertex 8's two polygons run opposite ways round it.
+    const Mesh cube = test::cubeMesh();
+    Mesh folded;
+    folded.points = cube.points;
+    folded.points.push_back(Vec3f(0.5f, 0.5f, 0.0f));
+    folded.addPolygon({0, 3, 2, 8});
+    folded.addPolygon({0, 8, 2, 1});
+    for (std::size_t f = 1; f < cube.polygonCount(); ++f) folded.addPolygon(cube.polygon(f), cube.polygonSize(f));
+    CHECK_THROWS_WITH(buildClosedSurface(folded, "fold.obj"), Catch::Contains("fold.obj") && Catch::Contains("vertex 8 is a fold"));
 }
 
 TEST_CASE("subCurve: an end a hair from a knot is cut at the knot, leaving no hair-thin span", "[reeb][bspline]") {

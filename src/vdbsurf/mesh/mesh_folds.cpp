@@ -136,10 +136,13 @@ FoldStats closeFolds(Mesh& mesh, std::vector<std::uint32_t> polygons, std::vecto
     return stats;
 }
 
-std::size_t countFolds(const Mesh& mesh) {
-    std::vector<std::uint32_t> all(mesh.polygonCount()), scratch;
+std::vector<std::uint32_t> foldedVertices(const Mesh& mesh) {
+    std::vector<std::uint32_t> all(mesh.polygonCount()), scratch, out;
     for (std::size_t p = 0; p < all.size(); ++p) all[p] = std::uint32_t(p);
-    return findFolds(mesh, all, scratch).size();
+    for (const Fold& f : findFolds(mesh, all, scratch)) out.push_back(mesh.polygon(f.p)[f.atP]);
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    return out;
 }
 
 } // namespace vdbsurf

@@ -31,7 +31,7 @@ struct FoldStats {
 // longer needs spares a fresh one's page faults).
 FoldStats closeFolds(Mesh& mesh, std::vector<std::uint32_t> polygons, std::vector<std::uint32_t>& scratch);
 
-// The folds of the whole mesh (vertices whose fan is two polygons folded onto each other).
-std::size_t countFolds(const Mesh& mesh);
+// The vertices of the whole mesh whose fan is two polygons folded onto each other, ascending.
+std::vector<std::uint32_t> foldedVertices(const Mesh& mesh);
 
 } // namespace vdbsurf

@@ -2,6 +2,7 @@
 
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/union_find.h"
+#include "vdbsurf/mesh/mesh_folds.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include <cmath>
@@ -30,6 +31,12 @@ ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName)
                 if (vs[i] == vs[j])
                     throw Error(inputName, "polygon " + std::to_string(p) + " uses vertex " + std::to_string(vs[i]) + " twice");
     }
+    // A fold (a vertex whose only two polygons run opposite ways round it) fans into an edge of
+    // four triangles; named as what it is rather than as that edge.
+    if (const std::vector<std::uint32_t> folds = foldedVertices(mesh); !folds.empty())
+        throw Error(inputName, "vertex " + std::to_string(folds.front()) + " is a fold: its only two polygons run opposite ways round it, a fin of no area" +
+                                   (folds.size() > 1 ? " (and " + std::to_string(folds.size() - 1) + " more)" : std::string()) +
+                                   "; the Reeb graph needs a closed manifold surface");
     // Fan every polygon into triangles first, so the fan analysis sees the triangles' edges.
     Mesh tris;
     std::vector<std::uint32_t> polygonOf;
