@@ -139,7 +139,14 @@ FoldStats closeFolds(Mesh& mesh, std::vector<std::uint32_t> polygons, std::vecto
 std::vector<std::uint32_t> foldedVertices(const Mesh& mesh) {
     std::vector<std::uint32_t> all(mesh.polygonCount()), scratch, out;
     for (std::size_t p = 0; p < all.size(); ++p) all[p] = std::uint32_t(p);
-    for (const Fold& f : findFolds(mesh, all, scratch)) out.push_back(mesh.polygon(f.p)[f.atP]);
+    // Only vertices with exactly two polygons: on a mesh that is not edge-manifold a reversed
+    // pair can sit among more, which is another fault (named by the edge checks).
+    std::vector<std::uint8_t> corners(mesh.points.size(), 0);
+    for (std::uint32_t v : mesh.indices) corners[v] = std::uint8_t(std::min(3, corners[v] + 1));
+    for (const Fold& f : findFolds(mesh, all, scratch)) {
+        const std::uint32_t v = mesh.polygon(f.p)[f.atP];
+        if (corners[v] == 2) out.push_back(v);
+    }
     std::sort(out.begin(), out.end());
     out.erase(std::unique(out.begin(), out.end()), out.end());
     return out;

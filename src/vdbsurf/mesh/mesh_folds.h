@@ -31,7 +31,7 @@ struct FoldStats {
 // longer needs spares a fresh one's page faults).
 FoldStats closeFolds(Mesh& mesh, std::vector<std::uint32_t> polygons, std::vector<std::uint32_t>& scratch);
 
-// The vertices of the whole mesh whose fan is two polygons folded onto each other, ascending.
+// The vertices of the whole mesh whose only two polygons are folded onto each other, ascending.
 std::vector<std::uint32_t> foldedVertices(const Mesh& mesh);
 
 } // namespace vdbsurf
