@@ -98,12 +98,13 @@ FoldStats closeFolds(Mesh& mesh, std::vector<std::uint32_t> polygons, std::vecto
         if (closedNow == 0) break;
         stats.closed += closedNow;
         stats.left = 0; // counted again by the last round
-        // The polygons without their dropped corners; those left under three vertices go.
+        // The polygons without their dropped corners; those left under three vertices go, and
+        // with them (keepPolygons) the points nothing uses any more: the folds' vertices.
         Mesh out;
         out.points = std::move(mesh.points);
         out.offsets.reserve(mesh.offsets.size());
         out.indices.reserve(mesh.indices.size());
-        std::vector<std::uint32_t> newPolygon(mesh.polygonCount(), ~0u);
+        std::vector<std::uint32_t> newPolygon(mesh.polygonCount(), kNone);
         for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
             const std::size_t before = out.indices.size();
             for (std::uint32_t c = mesh.offsets[p]; c < mesh.offsets[p + 1]; ++c)
@@ -116,22 +117,11 @@ FoldStats closeFolds(Mesh& mesh, std::vector<std::uint32_t> polygons, std::vecto
             newPolygon[p] = std::uint32_t(out.offsets.size() - 1);
             out.offsets.push_back(std::uint32_t(out.indices.size()));
         }
-        // Points no polygon uses any more (the folds' vertices) go; the rest keep their order.
-        std::vector<std::uint32_t> newPoint(out.points.size(), ~0u);
-        for (std::uint32_t v : out.indices) newPoint[v] = 0;
-        std::uint32_t next = 0;
-        for (std::size_t v = 0; v < newPoint.size(); ++v)
-            if (newPoint[v] == 0) {
-                newPoint[v] = next;
-                out.points[next++] = out.points[v];
-            }
-        out.points.resize(next);
-        for (std::uint32_t& v : out.indices) v = newPoint[v];
         std::vector<std::uint32_t> renumbered;
         for (std::uint32_t p : polygons)
-            if (newPolygon[p] != ~0u) renumbered.push_back(newPolygon[p]);
+            if (newPolygon[p] != kNone) renumbered.push_back(newPolygon[p]);
         polygons = std::move(renumbered);
-        mesh = std::move(out);
+        mesh = keepPolygons(out, std::vector<std::uint8_t>(out.polygonCount(), 1));
     }
     return stats;
 }
