@@ -9,11 +9,13 @@
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/dmc/thin_simplify.h"
 #include "vdbsurf/lattice/lattice.h"
+#include "vdbsurf/mesh/vertex_fans.h"
 
 #include <algorithm>
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <numeric>
 #include <cmath>
 
 namespace vdbsurf {
@@ -210,6 +212,12 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         const std::size_t before = mesh.polygonCount();
         mesh = withoutPolygonsOffData(mesh, field);
         report.polygonsWithoutData = before - mesh.polygonCount();
+        // The mesh is open where the data ends (cells the lattice dropped, polygons left out
+        // here), and two holes meeting diagonally leave the surface between them touching itself
+        // at a vertex: split it, one per fan, as the weld does, so what leaves is vertex-manifold.
+        std::vector<std::uint32_t> everyVertex(mesh.points.size());
+        std::iota(everyVertex.begin(), everyVertex.end(), 0u);
+        report.splitVertices += splitFansAt(mesh, std::move(everyVertex));
     }
     if (simplify && !thinNodes.empty()) {
         ThinSimplifyOptions tso;
