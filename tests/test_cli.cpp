@@ -686,6 +686,18 @@ TEST_CASE("patches: B-spline patches, Reeb graph JSON and preview from a DMC mes
     const Mesh preview = readMesh(dir.path("prev1.obj"));
     CHECK(checkTopology(preview).closedManifoldOriented());
 
+    // The same torus stored a point per corner (as files split at seams store them): merged,
+    // said so, the same patches.
+    const Mesh perCorner = test::pointPerCorner(input);
+    writeMesh(dir.path("corners.ply"), perCorner);
+    r = runVdbsurf({"patches", dir.path("corners.ply"), "-o", dir.path("pc.obj")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find(std::to_string(input.indices.size() - input.points.size()) + " points of " + dir.path("corners.ply") +
+                        " lie exactly where an earlier one does") != std::string::npos);
+    const auto afterComments = [](const std::string& text) { return text.substr(text.find("\nv ")); };
+    CHECK(afterComments(test::readFile(dir.path("pc.obj"))) == afterComments(test::readFile(dir.path("p1.obj"))));
+
     const std::vector<std::string> before = dir.files();
     writeMesh(dir.path("open.obj"), test::openCubeMesh());
     const std::vector<std::string> withOpen = dir.files();

@@ -12,6 +12,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
 using namespace vdbsurf;
@@ -233,4 +234,18 @@ TEST_CASE("PLY reader: our binary files, ascii, big-endian, extra properties, an
     CHECK_THROWS_WITH(readMesh(dir.path("range.ply")), Catch::Contains("out of range"));
     std::ofstream(dir.path("nomagic.ply")) << "solid x\n";
     CHECK_THROWS_WITH(readMesh(dir.path("nomagic.ply")), Catch::Contains("not a PLY"));
+}
+
+TEST_CASE("mergeCoincidentPoints: equal positions become the first point; unused and non-finite points are left") {
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    Mesh m;
+    m.points = {{1, 2, 3}, {0, 0, 0}, {1, 2, 3}, {-0.f, 0, 0}, {nan, 0, 0}, {nan, 0, 0}, {1, 2, 3}, {1, 2, 3.0000002f}, {0, 0, 0}};
+    m.addPolygon({0, 1, 7});
+    m.addPolygon({2, 3, 4});
+    m.addPolygon({6, 5, 7});
+    // Point 8 lies at point 1 but no polygon uses it: not counted.
+    CHECK(mergeCoincidentPoints(m) == 3); // 2 and 6 into 0, -0 (3) into 1
+    CHECK(m.indices == std::vector<std::uint32_t>{0, 1, 7, 0, 1, 4, 0, 5, 7});
+    CHECK(m.points.size() == 9);
+    CHECK(mergeCoincidentPoints(m) == 0);
 }

@@ -269,6 +269,31 @@ TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]")
     CHECK_THROWS_WITH(buildClosedSurface(folded, "fold.obj"), Catch::Contains("fold.obj") && Catch::Contains("vertex 8 is a fold"));
 }
 
+TEST_CASE("A mesh stored a point per polygon corner is merged where points coincide and gives the same patches", "[reeb][patches]") {
+    // What a file written per corner, or split at texture seams, looks like: open along every
+    // edge as given. Merged at equal positions it is the torus again; a hole stays refused.
+    const Mesh m = dmcMesh(torusFormula(1.0, 0.35, Vec3d(0, 1, 0)), 1.5, 0.06);
+    const Mesh perCorner = test::pointPerCorner(m);
+    const PatchResult a = patchesOf(m, Vec3d(0, 0, 1)), b = patchesOf(perCorner, Vec3d(0, 0, 1));
+    CHECK(a.surface.mergedPoints == 0);
+    CHECK(b.surface.mergedPoints == m.indices.size() - m.points.size());
+    checkGraph(b.graph, 1, 1, 2, 4, 1);
+    CHECK(b.preview.indices == a.preview.indices);
+    CHECK(b.preview.points == a.preview.points);
+    REQUIRE(b.patches.patches.size() == a.patches.patches.size());
+    for (std::size_t i = 0; i < a.patches.patches.size(); ++i) CHECK(b.patches.patches[i].surface.ctrl == a.patches.patches[i].surface.ctrl);
+    // Each node's input vertex lies at its position (the first of the points merged there).
+    for (std::size_t i = 0; i < b.graph.nodes.size(); ++i) {
+        const Vec3f& p = perCorner.points[b.surface.inputVertex[b.graph.nodes[i].vertex]];
+        CHECK(p == m.points[a.surface.inputVertex[a.graph.nodes[i].vertex]]);
+    }
+
+    Mesh holed;
+    holed.points = perCorner.points;
+    for (std::size_t f = 1; f < perCorner.polygonCount(); ++f) holed.addPolygon(perCorner.polygon(f), perCorner.polygonSize(f));
+    CHECK_THROWS_WITH(buildClosedSurface(holed, "holed.ply"), Catch::Contains("holed.ply: the surface is open") && Catch::Contains("does not mend it"));
+}
+
 TEST_CASE("subCurve: an end a hair from a knot is cut at the knot, leaving no hair-thin span", "[reeb][bspline]") {
     // A patch's boundary is cut from a lobe curve at its seam, found as a fraction of a length:
     // it can land on a knot but for the last bits. The span of that hair, once the part is

@@ -105,6 +105,19 @@ Mesh openCubeMesh() {
     return m;
 }
 
+Mesh pointPerCorner(const Mesh& mesh) {
+    Mesh m;
+    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
+        std::vector<std::uint32_t> vs;
+        for (std::uint32_t k = 0; k < mesh.polygonSize(f); ++k) {
+            vs.push_back(std::uint32_t(m.points.size()));
+            m.points.push_back(mesh.points[mesh.polygon(f)[k]]);
+        }
+        m.addPolygon(vs.data(), vs.size());
+    }
+    return m;
+}
+
 Mesh triangleFanDisc(int n) {
     Mesh m;
     m.points.emplace_back(0.f, 0.f, 0.3f);

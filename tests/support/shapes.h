@@ -13,5 +13,8 @@ Mesh quadTorusMesh(int u, int v, double R, double r); // u x v quads, genus 1
 Mesh openGridMesh(int n);      // n x n quads in the plane z = 0, with a boundary
 Mesh openCubeMesh();           // the cube without its top face
 Mesh triangleFanDisc(int n);   // n triangles around a centre, boundary polygon of n edges
+// The same polygons with a point of their own at every corner, as a file written per corner
+// (or split at seams) stores them: open along every edge.
+Mesh pointPerCorner(const Mesh& mesh);
 
 } // namespace vdbsurf::test

@@ -69,6 +69,10 @@ void runPatches(const PatchesOptions& o) {
     if (!o.reeb.empty()) reeb::writeReebJson(o.reeb, g, r.surface);
     if (!o.preview.empty()) writeMesh(o.preview, r.preview, comments);
 
+    if (r.surface.mergedPoints)
+        note(std::to_string(r.surface.mergedPoints) + " points of " + o.input +
+             " lie exactly where an earlier one does and were merged into it (a file that stores a point once per side of a " +
+             "seam); merged, the surface is closed");
     std::ostringstream s;
     s << o.input << ": " << g.minima << " minima, " << g.maxima << " maxima, " << g.saddles << " saddles (Euler characteristic "
       << g.eulerCharacteristic << "); Reeb graph " << g.nodes.size() << " nodes, " << g.units.size() << " arcs, " << g.loops()
@@ -101,6 +105,7 @@ void runPatches(const PatchesOptions& o) {
                                 {"output", o.output},
                                 {"input_polygons", input.polygonCount()},
                                 {"triangles", r.surface.triangleCount()},
+                                {"merged_points", r.surface.mergedPoints},
                                 {"minima", g.minima},
                                 {"maxima", g.maxima},
                                 {"saddles", g.saddles},

@@ -1,6 +1,9 @@
 #include "vdbsurf/mesh/mesh.h"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
+#include <numeric>
 
 namespace vdbsurf {
 
@@ -35,6 +38,39 @@ Mesh keepPolygons(const Mesh& mesh, const std::vector<std::uint8_t>& keep) {
         out.offsets.push_back(std::uint32_t(out.indices.size()));
     }
     return out;
+}
+
+std::size_t mergeCoincidentPoints(Mesh& mesh) {
+    std::vector<std::uint32_t> order;
+    order.reserve(mesh.points.size());
+    for (std::uint32_t v = 0; v < mesh.points.size(); ++v) {
+        const Vec3f& p = mesh.points[v];
+        if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z)) order.push_back(v);
+    }
+    // By position (as floats: -0 and 0 are one), then index, so each run starts at its first point.
+    const auto before = [&](std::uint32_t a, std::uint32_t b) {
+        const Vec3f &p = mesh.points[a], &q = mesh.points[b];
+        if (p.x != q.x) return p.x < q.x;
+        if (p.y != q.y) return p.y < q.y;
+        if (p.z != q.z) return p.z < q.z;
+        return a < b;
+    };
+    std::sort(order.begin(), order.end(), before);
+    std::vector<std::uint32_t> to(mesh.points.size());
+    std::iota(to.begin(), to.end(), 0u);
+    for (std::size_t i = 1; i < order.size(); ++i) {
+        const Vec3f &p = mesh.points[order[i]], &q = mesh.points[order[i - 1]];
+        if (p.x == q.x && p.y == q.y && p.z == q.z) to[order[i]] = to[order[i - 1]];
+    }
+    std::vector<std::uint8_t> counted(mesh.points.size(), 0);
+    std::size_t merged = 0;
+    for (std::uint32_t& i : mesh.indices)
+        if (to[i] != i) {
+            merged += !counted[i];
+            counted[i] = 1;
+            i = to[i];
+        }
+    return merged;
 }
 
 Box3 Mesh::bounds() const {

@@ -41,6 +41,12 @@ double enclosedVolume(const Mesh& mesh);
 // The polygons whose keep[] entry is non-zero, and the vertices they use, both in their order.
 Mesh keepPolygons(const Mesh& mesh, const std::vector<std::uint8_t>& keep);
 
+// Polygons that use a point at exactly the position of an earlier point (files written per
+// corner, or split at texture seams and hard normals, store one point per side) use the first
+// one instead; returns how many used points were merged away. Points are kept (unused), so indices
+// still mean the input's. Non-finite points are left alone.
+std::size_t mergeCoincidentPoints(Mesh& mesh);
+
 // Triangles and quads only: n-gons (n > 4) fanned into triangles, as OpenVDB's tools expect.
 void splitToTrianglesAndQuads(const Mesh& mesh, std::vector<std::uint32_t>& triangles, std::vector<std::uint32_t>& quads);
 

@@ -20,7 +20,9 @@ double ClosedSurface::meanEdgeLength() const {
     return n ? sum / double(n) : 0.0;
 }
 
-ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName) {
+namespace {
+
+ClosedSurface buildFrom(const Mesh& mesh, const std::string& inputName) {
     if (mesh.empty()) throw Error(inputName, "the mesh has no polygons");
     for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
         const std::uint32_t n = mesh.polygonSize(p);
@@ -85,6 +87,29 @@ ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName)
     for (std::uint32_t c = 0; c < s.vertex.size(); ++c) uf.unite(s.vertex[c], s.vertex[ClosedSurface::next(c)]);
     for (std::uint32_t v = 0; v < s.points.size(); ++v) s.components += uf.find(v) == v;
     return s;
+}
+
+} // namespace
+
+ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName) {
+    try {
+        return buildFrom(mesh, inputName);
+    } catch (const Error& asGiven) {
+        // Points stored once per side of a seam leave the surface open along it (or, where
+        // seams meet, a point shared by wedges that do not touch): merged, it may be whole.
+        Mesh merged = mesh;
+        const std::size_t n = mergeCoincidentPoints(merged);
+        if (n == 0) throw;
+        try {
+            ClosedSurface s = buildFrom(merged, inputName);
+            s.mergedPoints = n;
+            return s;
+        } catch (const Error&) {
+            const std::string what = asGiven.what(), prefix = inputName + ": ";
+            throw Error(inputName, (what.compare(0, prefix.size(), prefix) == 0 ? what.substr(prefix.size()) : what) + " (merging the " +
+                                       std::to_string(n) + " points at the position of another does not mend it)");
+        }
+    }
 }
 
 } // namespace vdbsurf::reeb

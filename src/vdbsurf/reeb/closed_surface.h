@@ -23,6 +23,9 @@ struct ClosedSurface {
     std::vector<std::uint32_t> edgeOf;   // per corner: index of its undirected edge
     std::size_t edgeCount = 0;
     std::size_t components = 0;
+    // Input points merged into an earlier one at the same position, which closed the surface
+    // (mergeCoincidentPoints; 0 when the input was closed as given).
+    std::size_t mergedPoints = 0;
 
     std::size_t triangleCount() const { return vertex.size() / 3; }
     static std::uint32_t next(std::uint32_t c) { return c % 3 == 2 ? c - 2 : c + 1; }
@@ -36,7 +39,9 @@ struct ClosedSurface {
 // Polygons are fanned from their first corner. Throws Error naming inputName for an open
 // surface (naming a boundary edge), an edge of three or more polygons or inconsistent
 // orientation, a non-manifold vertex (two fans meeting at a point), a polygon with fewer than
-// three corners or a repeated vertex, a non-finite point, or an empty mesh.
+// three corners or a repeated vertex, a non-finite point, or an empty mesh. Input that fails
+// as given but passes once points at equal positions are merged (a file written per corner, or
+// split at texture seams: open along them) is taken merged, and says so (mergedPoints).
 ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName);
 
 } // namespace vdbsurf::reeb
