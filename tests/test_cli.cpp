@@ -537,6 +537,25 @@ TEST_CASE("subdivide: levels and steps, stats, view-dependent refinement, and cl
     CHECK(stats["output_polygons"] > 24);  // the front faces went past the 24 of one level
     CHECK(stats["output_polygons"] < 384); // fewer than uniform to the silhouette depth
 
+    // The cube stored a point per corner: each face is refined as a boundary of its own (said),
+    // unless --merge-points joins the points first; then it is the cube's surface again.
+    writeMesh(dir.path("corners.obj"), test::pointPerCorner(cube));
+    r = runVdbsurf({"subdivide", dir.path("corners.obj"), "-o", dir.path("c.obj"), "--levels", "2", "--stats", dir.path("c.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("16 points lie exactly where an earlier one does") != std::string::npos);
+    CHECK(r.output.find("--merge-points joins them") != std::string::npos);
+    CHECK(checkTopology(readMesh(dir.path("c.obj"))).boundaryEdges > 0);
+    r = runVdbsurf({"subdivide", dir.path("corners.obj"), "-o", dir.path("cm.obj"), "--levels", "2", "--merge-points", "--stats",
+                    dir.path("cm.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(nlohmann::json::parse(test::readFile(dir.path("cm.json")))["merged_points"] == 16);
+    const Mesh merged = readMesh(dir.path("cm.obj")), plain = readMesh(dir.path("l2.obj"));
+    CHECK(checkTopology(merged).closedManifoldOriented());
+    CHECK(merged.polygonCount() == plain.polygonCount());
+    CHECK(enclosedVolume(merged) == Approx(enclosedVolume(plain)).epsilon(1e-6));
+
     const std::vector<std::string> before = dir.files();
     expectFailure(dir, {"subdivide", dir.path("cube.obj"), "-o", dir.path("x.stl")}, "x.stl", "unsupported output format", before);
     expectFailure(dir, {"subdivide", dir.path("cube.obj"), "-o", dir.path("x.obj"), "--levels", "1", "--steps", "2"}, "--levels",

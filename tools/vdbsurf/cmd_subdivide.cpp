@@ -25,6 +25,7 @@ struct SubdivideOptions {
     int frontDepth = 4, silhouetteDepth = 8;
     double stopPixels = 1.0;
     int threads = 0;
+    bool mergePoints = false;
 };
 
 Vec3d parseVec(const std::string& option, const std::string& text) {
@@ -65,7 +66,21 @@ void runSubdivide(const SubdivideOptions& o) {
     if (!o.stats.empty()) checkWritableTarget(o.stats);
     ThreadLimit threads(o.threads);
 
-    const Mesh input = readMesh(o.input);
+    Mesh input = readMesh(o.input);
+    // A file that stores a point per corner, or per side of a texture seam, is open along every
+    // seam: each side subdivides as a boundary, and the seams show as creases. Joined on request
+    // (a seam may be a crease on purpose); else said when there are any.
+    std::size_t coincident = 0;
+    {
+        Mesh merged = input;
+        coincident = mergeCoincidentPoints(merged);
+        if (o.mergePoints) input = std::move(merged);
+    }
+    if (coincident)
+        note(o.input + ": " + std::to_string(coincident) + " points lie exactly where an earlier one does" +
+             (o.mergePoints ? "; merged (--merge-points)"
+                            : " (a point per corner or per side of a seam): their polygons are not joined there, and each side is "
+                              "refined as a boundary; --merge-points joins them"));
     const bool viewDependent = camera && !o.levels && !o.steps;
     const int steps = o.steps ? *o.steps : 2 * (o.levels ? *o.levels : 2);
     Mesh out;
@@ -118,6 +133,8 @@ void runSubdivide(const SubdivideOptions& o) {
                          {"output_polygons", out.polygonCount()},
                          {"threads", threads.threads()},
                          {"split_vertices", splitVertices},
+                         {"coincident_points", coincident},
+                         {"merged_points", o.mergePoints ? coincident : 0},
                          {"seconds", {{"refine", secondsRefine}, {"total", since(t0)}}}};
         if (viewDependent)
             j["view"] = {{"front_depth", o.frontDepth},         {"silhouette_depth", o.silhouetteDepth},
@@ -146,6 +163,8 @@ Action addSubdivideCommand(CLI::App& app) {
     sub->add_option("--front-depth", o->frontDepth, "sqrt2 steps for front-facing faces (default 4)");
     sub->add_option("--silhouette-depth", o->silhouetteDepth, "sqrt2 steps for silhouette faces (default 8)");
     sub->add_option("--stop-pixels", o->stopPixels, "Stop refining a face smaller than this on screen (default 1 pixel)");
+    sub->add_flag("--merge-points", o->mergePoints,
+                  "Join points at exactly equal positions first (files that store a point per corner or per side of a seam)");
     sub->add_option("--threads", o->threads, "Worker threads (0: all cores)");
     sub->add_option("--stats", o->stats, "Write statistics as JSON to this file");
     return [o] { runSubdivide(*o); };
