@@ -244,6 +244,9 @@ TEST_CASE("mergeCoincidentPoints: equal positions become the first point; unused
     m.addPolygon({2, 3, 4});
     m.addPolygon({6, 5, 7});
     // Point 8 lies at point 1 but no polygon uses it: not counted.
+    const std::vector<std::uint32_t> given = m.indices;
+    CHECK(countCoincidentPoints(m) == 3);
+    CHECK(m.indices == given);
     CHECK(mergeCoincidentPoints(m) == 3); // 2 and 6 into 0, -0 (3) into 1
     CHECK(m.indices == std::vector<std::uint32_t>{0, 1, 7, 0, 1, 4, 0, 5, 7});
     CHECK(m.points.size() == 9);

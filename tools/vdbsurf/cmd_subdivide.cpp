@@ -70,12 +70,7 @@ void runSubdivide(const SubdivideOptions& o) {
     // A file that stores a point per corner, or per side of a texture seam, is open along every
     // seam: each side subdivides as a boundary, and the seams show as creases. Joined on request
     // (a seam may be a crease on purpose); else said when there are any.
-    std::size_t coincident = 0;
-    {
-        Mesh merged = input;
-        coincident = mergeCoincidentPoints(merged);
-        if (o.mergePoints) input = std::move(merged);
-    }
+    const std::size_t coincident = o.mergePoints ? mergeCoincidentPoints(input) : countCoincidentPoints(input);
     if (coincident)
         note(o.input + ": " + std::to_string(coincident) + " points lie exactly where an earlier one does" +
              (o.mergePoints ? "; merged (--merge-points)"

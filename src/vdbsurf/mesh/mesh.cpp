@@ -40,7 +40,11 @@ Mesh keepPolygons(const Mesh& mesh, const std::vector<std::uint8_t>& keep) {
     return out;
 }
 
-std::size_t mergeCoincidentPoints(Mesh& mesh) {
+namespace {
+
+// For each point, the first point at exactly its position (itself if none); non-finite points
+// map to themselves.
+std::vector<std::uint32_t> firstPointAtEachPosition(const Mesh& mesh) {
     std::vector<std::uint32_t> order;
     order.reserve(mesh.points.size());
     for (std::uint32_t v = 0; v < mesh.points.size(); ++v) {
@@ -62,16 +66,30 @@ std::size_t mergeCoincidentPoints(Mesh& mesh) {
         const Vec3f &p = mesh.points[order[i]], &q = mesh.points[order[i - 1]];
         if (p.x == q.x && p.y == q.y && p.z == q.z) to[order[i]] = to[order[i - 1]];
     }
-    std::vector<std::uint8_t> counted(mesh.points.size(), 0);
-    std::size_t merged = 0;
-    for (std::uint32_t& i : mesh.indices)
-        if (to[i] != i) {
-            merged += !counted[i];
-            counted[i] = 1;
-            i = to[i];
-        }
-    return merged;
+    return to;
 }
+
+// How many used points map elsewhere; `rewrite` (the mesh's own indices, or null) gets those
+// others in their place.
+std::size_t coincidentPoints(const Mesh& mesh, std::vector<std::uint32_t>* rewrite) {
+    const std::vector<std::uint32_t> to = firstPointAtEachPosition(mesh);
+    std::vector<std::uint8_t> counted(mesh.points.size(), 0);
+    std::size_t count = 0;
+    for (std::size_t k = 0; k < mesh.indices.size(); ++k) {
+        const std::uint32_t i = mesh.indices[k];
+        if (to[i] == i) continue;
+        count += !counted[i];
+        counted[i] = 1;
+        if (rewrite) (*rewrite)[k] = to[i];
+    }
+    return count;
+}
+
+} // namespace
+
+std::size_t mergeCoincidentPoints(Mesh& mesh) { return coincidentPoints(mesh, &mesh.indices); }
+
+std::size_t countCoincidentPoints(const Mesh& mesh) { return coincidentPoints(mesh, nullptr); }
 
 Box3 Mesh::bounds() const {
     const double inf = std::numeric_limits<double>::infinity();

@@ -46,6 +46,8 @@ Mesh keepPolygons(const Mesh& mesh, const std::vector<std::uint8_t>& keep);
 // one instead; returns how many used points were merged away. Points are kept (unused), so indices
 // still mean the input's. Non-finite points are left alone.
 std::size_t mergeCoincidentPoints(Mesh& mesh);
+// What mergeCoincidentPoints would return, the mesh left as it is.
+std::size_t countCoincidentPoints(const Mesh& mesh);
 
 // Triangles and quads only: n-gons (n > 4) fanned into triangles, as OpenVDB's tools expect.
 void splitToTrianglesAndQuads(const Mesh& mesh, std::vector<std::uint32_t>& triangles, std::vector<std::uint32_t>& quads);
