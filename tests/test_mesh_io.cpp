@@ -234,6 +234,20 @@ TEST_CASE("PLY reader: our binary files, ascii, big-endian, extra properties, an
     CHECK_THROWS_WITH(readMesh(dir.path("range.ply")), Catch::Contains("out of range"));
     std::ofstream(dir.path("nomagic.ply")) << "solid x\n";
     CHECK_THROWS_WITH(readMesh(dir.path("nomagic.ply")), Catch::Contains("not a PLY"));
+    // A damaged count is refused by the bytes left, before any memory is sized by it (a header
+    // asking for 4e9 vertices ended in "out of memory" with no file named).
+    std::string huge = be;
+    huge.replace(huge.find("element vertex 3"), 16, "element vertex 4000000000");
+    std::ofstream(dir.path("huge.ply"), std::ios::binary) << huge;
+    CHECK_THROWS_WITH(readMesh(dir.path("huge.ply")), Catch::Contains("huge.ply") && Catch::Contains("4000000000 vertex rows"));
+    std::ofstream(dir.path("hugeascii.ply")) << "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+                                                "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                                                "0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n3 0 1 2";
+    CHECK(readMesh(dir.path("hugeascii.ply")).polygonCount() == 1); // the shortest rows, no newline at the end: taken
+    std::ofstream(dir.path("hugeascii2.ply")) << "ply\nformat ascii 1.0\nelement vertex 7\nproperty float x\nproperty float y\n"
+                                                 "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                                                 "0 0 0\n1 0 0\n0 1 0\n0 0 1\n1 1 1\n3 0 1 2";
+    CHECK_THROWS_WITH(readMesh(dir.path("hugeascii2.ply")), Catch::Contains("7 vertex rows"));
 }
 
 TEST_CASE("mergeCoincidentPoints: equal positions become the first point; unused and non-finite points are left") {

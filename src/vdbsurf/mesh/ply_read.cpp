@@ -64,6 +64,8 @@ public:
         return as(double());
     }
 
+    std::size_t remaining() const { return mData.size() - mPos; }
+
 private:
     double readAscii() {
         while (mPos < mData.size() && std::isspace((unsigned char)mData[mPos])) ++mPos;
@@ -157,10 +159,18 @@ Mesh readPly(const std::string& path) {
         }
         if (isVertex && (axis[0] < 0 || axis[1] < 0 || axis[2] < 0)) throw Error(path, "PLY vertex element lacks x, y or z");
         if (isFace && indexList < 0) throw Error(path, "PLY face element lacks a vertex_indices list");
+        // Every row takes some bytes (binary: its scalars and list lengths; ascii: a character and
+        // a separator a value), so a count the rest of the file cannot hold is refused before
+        // anything is sized by it: a damaged header must not ask for gigabytes.
+        std::size_t rowBytes = 0;
+        for (const Property& p : e.properties) rowBytes += enc == Encoding::Ascii ? 2 : typeSize(p.countType.empty() ? p.type : p.countType);
+        if (rowBytes > 0 && e.count > (body.remaining() + 1) / rowBytes)
+            throw Error(path, "file ends before the data its header declares (" + std::to_string(e.count) + " " + e.name + " rows)");
         if (isVertex) {
             sawVertices = true;
             mesh.points.reserve(e.count);
         }
+        if (rowBytes == 0) continue; // an element without properties holds nothing to read
         for (std::size_t row = 0; row < e.count; ++row) {
             Vec3f v;
             face.clear();
