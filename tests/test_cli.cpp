@@ -573,6 +573,22 @@ TEST_CASE("subdivide: levels and steps, stats, view-dependent refinement, and cl
     expectFailure(dir, {"subdivide", dir.path("fin.obj"), "-o", dir.path("x.obj")}, "fin.obj", "same direction", withFin);
 }
 
+TEST_CASE("out of memory: one error naming the command and what to change, nothing written") {
+    // Under a 400 MB address-space limit, four levels of a 20,000-quad torus (5.1 M polygons,
+    // ~0.8 GB) pass the subdivider's own check against free memory and fail to allocate. The
+    // message named no command and told every command to try a larger --voxel-size.
+    test::TempDir dir;
+    writeMesh(dir.path("torus.obj"), test::quadTorusMesh(200, 100, 1.0, 0.3));
+    const std::vector<std::string> before = dir.files();
+    const auto r = test::runProgram({"sh", "-c", "ulimit -v 400000 && exec \"$0\" subdivide \"$1\" -o \"$2\" --levels 4", VDBSURF_BIN,
+                                     dir.path("torus.obj"), dir.path("smooth.obj")});
+    INFO(r.output);
+    CHECK(r.exitCode == 1);
+    CHECK(r.output.find("vdbsurf: error: subdivide: out of memory (try fewer --levels or --steps") != std::string::npos);
+    CHECK(r.output.find("--voxel-size") == std::string::npos);
+    CHECK(dir.files() == before);
+}
+
 TEST_CASE("subdivide writes a POV-Ray scene that povray renders as the camera sees it") {
     if (!test::onPath("povray")) {
         WARN("skipped: povray is not installed (scripts/dev deps installs it)");

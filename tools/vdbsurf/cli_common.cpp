@@ -54,7 +54,18 @@ Box3 parseBox(const std::string& option, const std::string& text) {
     return {{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
 }
 
-int runGuarded(const std::function<void()>& body) {
+namespace {
+
+// What the user can change when a command runs out of memory.
+std::string outOfMemoryHint(const std::string& command) {
+    if (command == "mesh" || command == "compare" || command == "rasterize" || command == "edit") return " (try a larger --voxel-size)";
+    if (command == "subdivide") return " (try fewer --levels or --steps, or a smaller --silhouette-depth)";
+    return "";
+}
+
+} // namespace
+
+int runGuarded(const std::function<void()>& body, const std::string& command) {
     try {
         body();
         return 0;
@@ -65,7 +76,7 @@ int runGuarded(const std::function<void()>& body) {
         std::cerr << "vdbsurf: error: " << e.what() << "\n";
         return kExitInput;
     } catch (const std::bad_alloc&) {
-        std::cerr << "vdbsurf: error: out of memory (try a larger --voxel-size)\n";
+        std::cerr << "vdbsurf: error: " << command << ": out of memory" << outOfMemoryHint(command) << "\n";
         return kExitInput;
     } catch (const std::exception& e) {
         std::cerr << "vdbsurf: internal error: " << e.what() << "\n";

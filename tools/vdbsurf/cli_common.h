@@ -37,8 +37,9 @@ inline double since(Clock::time_point t) { return std::chrono::duration<double>(
 // Writes j (indented) to path atomically; throws Error naming path.
 void writeJsonFile(const std::string& path, const nlohmann::json& j);
 
-// Runs a subcommand body, mapping exceptions to messages and exit codes.
-int runGuarded(const std::function<void()>& body);
+// Runs a subcommand body, mapping exceptions to messages and exit codes; `command` (the
+// subcommand's name) names the job in an out-of-memory message and picks its hint.
+int runGuarded(const std::function<void()>& body, const std::string& command);
 
 // Subcommand registration; each returns the action to run when that subcommand was chosen.
 using Action = std::function<void()>;

@@ -32,6 +32,6 @@ int main(int argc, char** argv) {
     }
     installSignalCancel();
     for (auto& [sub, action] : commands)
-        if (sub->parsed()) return cli::runGuarded(action);
+        if (sub->parsed()) return cli::runGuarded(action, sub->get_name());
     return 2;
 }
