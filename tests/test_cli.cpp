@@ -511,6 +511,56 @@ Image readPpm(const std::string& path) {
 
 } // namespace
 
+TEST_CASE("info describes a mesh: counts, topology, genus, and what subdivide and patches make of it") {
+    test::TempDir dir;
+    writeMesh(dir.path("torus.ply"), test::quadTorusMesh(24, 12, 1.0, 0.3));
+    auto r = runVdbsurf({"info", dir.path("torus.ply")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("a mesh of 288 vertices and 288 polygons (0 triangles, 288 quads, 0 larger)") != std::string::npos);
+    CHECK(r.output.find("closed, manifold and oriented, genus 1") != std::string::npos);
+    CHECK(r.output.find("subdivide: takes it") != std::string::npos);
+    CHECK(r.output.find("patches: takes it") != std::string::npos);
+
+    auto json = [&](const std::string& file) {
+        const auto j = runVdbsurf({"-q", "info", "--json", dir.path(file)});
+        INFO(j.output);
+        REQUIRE(j.exitCode == 0);
+        return nlohmann::json::parse(j.output);
+    };
+    writeMesh(dir.path("cube.obj"), test::cubeMesh());
+    writeMesh(dir.path("corners.obj"), test::pointPerCorner(test::cubeMesh()));
+    writeMesh(dir.path("open.obj"), test::openCubeMesh());
+    const auto cube = json("cube.obj"), corners = json("corners.obj"), open = json("open.obj");
+    CHECK(cube["kind"] == "mesh");
+    CHECK(cube["edges"] == 12);
+    CHECK(cube["euler_characteristic"] == 2);
+    CHECK(cube["genus"] == 0);
+    CHECK(cube["patches"] == true);
+    CHECK(cube["patches_merged_points"] == 0);
+    CHECK(corners["vertices"] == 24);
+    CHECK(corners["boundary_edges"] == 24);
+    CHECK(corners["components"] == 6);
+    CHECK(corners["coincident_points"] == 16);
+    CHECK(corners["genus"] == nullptr);
+    CHECK(corners["patches"] == true);
+    CHECK(corners["patches_merged_points"] == 16);
+    CHECK(open["boundary_edges"] == 4);
+    CHECK(open["subdivide"] == true);
+    CHECK(open["patches"].get<std::string>().find("the surface is open") != std::string::npos);
+
+    // A mesh no job takes says why each refuses it; a bad file is one error naming it.
+    Mesh three = test::cubeMesh();
+    three.addPolygon({0, 1, 2}); // cube edges 0-1 and 1-2 get a third polygon
+    writeMesh(dir.path("three.obj"), three);
+    const auto bad = json("three.obj");
+    CHECK(bad["non_manifold_edges"] == 2);
+    CHECK(bad["subdivide"].is_string());
+    CHECK(bad["patches"].is_string());
+    std::ofstream(dir.path("broken.obj")) << "v 0 0 0\nf 1 2 3\n";
+    expectFailure(dir, {"info", dir.path("broken.obj")}, "broken.obj", "", dir.files());
+}
+
 TEST_CASE("subdivide: levels and steps, stats, view-dependent refinement, and clear errors") {
     test::TempDir dir;
     const Mesh cube = test::cubeMesh();

@@ -1,6 +1,12 @@
-// vdbsurf info IN.vdb [--json]: what a file holds, grid by grid.
+// vdbsurf info IN.vdb|IN.obj|IN.ply [--json]: what a file holds — a volume grid by grid, a mesh
+// by its counts and topology, and whether subdivide and patches take it (and if not, why).
 #include "cli_common.h"
 
+#include "vdbsurf/core/error.h"
+#include "vdbsurf/mesh/mesh_check.h"
+#include "vdbsurf/mesh/mesh_io.h"
+#include "vdbsurf/reeb/closed_surface.h"
+#include "vdbsurf/subdiv/sqrt2_subdivision.h"
 #include "vdbsurf/vdb/vdb_file.h"
 
 #include <nlohmann/json.hpp>
@@ -27,6 +33,80 @@ std::string voxelText(const Vec3d& v) {
     return s.str();
 }
 
+// Whether a job takes the mesh: "" if so, else the error it would stop with (without the file
+// name, which the report already gives).
+template <typename Job>
+std::string refusal(const std::string& path, Job&& job) {
+    try {
+        job();
+        return "";
+    } catch (const Error& e) {
+        const std::string what = e.what(), prefix = path + ": ";
+        return what.compare(0, prefix.size(), prefix) == 0 ? what.substr(prefix.size()) : what;
+    }
+}
+
+void describeMesh(const std::string& path, bool json) {
+    const Mesh mesh = readMesh(path);
+    const MeshTopology t = checkTopology(mesh);
+    const std::size_t triangles = mesh.countPolygonsOfSize(3), quads = mesh.countPolygonsOfSize(4);
+    const std::size_t used = mesh.points.size() - t.unusedVertices, components = countComponents(mesh);
+    const long euler = long(used) - long(t.edges) + long(mesh.polygonCount());
+    const bool closed = t.closedManifoldOriented() && t.degeneratePolygons == 0;
+    // A closed orientable surface of c pieces has Euler characteristic 2c - 2g.
+    const long genus = closed ? (2 * long(components) - euler) / 2 : -1;
+    const std::size_t coincident = countCoincidentPoints(mesh);
+    const std::string subdivide = refusal(path, [&] { Sqrt2Subdivider s(mesh, path); });
+    reeb::ClosedSurface surface;
+    const std::string patches = refusal(path, [&] { surface = reeb::buildClosedSurface(mesh, path); });
+    const Box3 b = mesh.bounds();
+    if (json) {
+        nlohmann::json j{{"file", path},
+                         {"kind", "mesh"},
+                         {"vertices", mesh.points.size()},
+                         {"polygons", mesh.polygonCount()},
+                         {"triangles", triangles},
+                         {"quads", quads},
+                         {"other_polygons", mesh.polygonCount() - triangles - quads},
+                         {"bbox", {{b.min.x, b.min.y, b.min.z}, {b.max.x, b.max.y, b.max.z}}},
+                         {"edges", t.edges},
+                         {"boundary_edges", t.boundaryEdges},
+                         {"non_manifold_edges", t.nonManifoldEdges},
+                         {"inconsistent_edges", t.inconsistentEdges},
+                         {"non_manifold_vertices", t.nonManifoldVertices},
+                         {"folded_vertices", t.foldedVertices},
+                         {"degenerate_polygons", t.degeneratePolygons},
+                         {"unused_vertices", t.unusedVertices},
+                         {"coincident_points", coincident},
+                         {"components", components},
+                         {"euler_characteristic", euler},
+                         {"closed_manifold_oriented", closed},
+                         {"genus", closed ? nlohmann::json(genus) : nlohmann::json(nullptr)},
+                         {"subdivide", subdivide.empty() ? nlohmann::json(true) : nlohmann::json(subdivide)},
+                         {"patches", patches.empty() ? nlohmann::json(true) : nlohmann::json(patches)},
+                         {"patches_merged_points", surface.mergedPoints}};
+        std::cout << j.dump(2) << "\n";
+        return;
+    }
+    std::cout << path << ": a mesh of " << mesh.points.size() << " vertices and " << mesh.polygonCount() << " polygons (" << triangles
+              << " triangles, " << quads << " quads, " << mesh.polygonCount() - triangles - quads << " larger)\n";
+    std::cout << "  bbox " << vecText(b.min) << " .. " << vecText(b.max) << "\n";
+    std::cout << "  " << t.edges << " edges: " << t.boundaryEdges << " on a boundary, " << t.nonManifoldEdges << " of three or more polygons, "
+              << t.inconsistentEdges << " against the orientation\n";
+    std::cout << "  " << t.nonManifoldVertices << " non-manifold vertices, " << t.foldedVertices << " folds, " << t.degeneratePolygons
+              << " degenerate polygons, " << t.unusedVertices << " unused vertices, " << coincident
+              << " points at an earlier point's position\n";
+    std::cout << "  " << components << (components == 1 ? " piece" : " pieces") << ", Euler characteristic " << euler;
+    if (closed) std::cout << "; closed, manifold and oriented, genus " << genus;
+    std::cout << "\n";
+    std::cout << "  subdivide: " << (subdivide.empty() ? "takes it" : "refuses it: " + subdivide) << "\n";
+    std::cout << "  patches: "
+              << (!patches.empty()           ? "refuses it: " + patches
+                  : surface.mergedPoints > 0 ? "takes it with its " + std::to_string(surface.mergedPoints) + " coincident points merged"
+                                             : "takes it")
+              << "\n";
+}
+
 } // namespace
 
 Action addInfoCommand(CLI::App& app) {
@@ -36,11 +116,17 @@ Action addInfoCommand(CLI::App& app) {
         bool verify = false;
     };
     auto opt = std::make_shared<Options>();
-    CLI::App* sub = app.add_subcommand("info", "List the grids of a .vdb file: name, type, class, voxel size, active voxels, world bounds");
-    sub->add_option("input", opt->input, "The .vdb file")->required();
+    CLI::App* sub = app.add_subcommand("info", "List the grids of a .vdb file (name, type, class, voxel size, active voxels, world "
+                                               "bounds), or describe a mesh (counts, topology, what subdivide and patches make of it)");
+    sub->add_option("input", opt->input, "The .vdb, .obj or .ply file")->required();
     sub->add_flag("--json", opt->json, "Print JSON instead of a table");
     sub->add_flag("--verify", opt->verify, "Read every grid in full (slower), so damaged or truncated data is reported");
     return [opt] {
+        const MeshFormat format = meshFormatOf(opt->input);
+        if (format == MeshFormat::Obj || format == MeshFormat::Ply) {
+            describeMesh(opt->input, opt->json);
+            return;
+        }
         const auto grids = summarizeVdbFile(opt->input, opt->verify);
         if (opt->json) {
             nlohmann::json out = nlohmann::json::array();
