@@ -320,6 +320,11 @@ TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "-0.1", "-o", out}, "--voxel-size", "positive", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "1e-9", "-o", out}, "--voxel-size", "at most", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", "1e-5", "-o", out}, "--voxel-size", "too fine", before);
+    // A spacing wider than the input (1e300 walked a lattice edge voxel by voxel for ever, and
+    // sampled at index coordinates past an int: a crash).
+    for (const char* h : {"7", "1e6", "1e300"})
+        expectFailure(dir, {"mesh", dir.path("good.vdb"), "--voxel-size", h, "-o", out}, "--voxel-size", "is wider than all of", before);
+    expectFailure(dir, {"compare", dir.path("good.vdb"), "--voxel-size", "1e300"}, "--voxel-size", "is wider than all of", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--iso", "7", "-o", out}, "good.vdb", "no surface", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--sharp-noise", "0", "-o", out}, "--sharp-noise", "(0, 1]", before);
     expectFailure(dir, {"mesh", dir.path("good.vdb"), "--method", "mc", "--no-simplify", "-o", out}, "--no-simplify",
@@ -452,6 +457,8 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
     expectFailure(dir, {"rasterize", dir.path("missing.json"), "-o", dir.path("bad.vdb"), "--voxel-size", "0.05"}, "missing.json",
                   "cannot open", now);
     expectFailure(dir, {"rasterize", scene, "-o", dir.path("bad.vdb")}, "--voxel-size", "required", now);
+    expectFailure(dir, {"rasterize", scene, "-o", dir.path("bad.vdb"), "--voxel-size", "1e300"}, "--voxel-size", "is wider than all of",
+                  now);
     // Below about 1.44e-5 OpenVDB's transforms refuse the scale (an ArithmeticError naming nothing).
     expectFailure(dir, {"rasterize", scene, "-o", dir.path("bad.vdb"), "--voxel-size", "1e-5"}, "--voxel-size",
                   "cannot be stored in a .vdb grid", now);

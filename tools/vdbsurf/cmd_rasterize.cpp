@@ -60,7 +60,7 @@ void runRasterize(const RasterizeOptions& o) {
     const DensityRaster raster(scene, ro);
     processCancelToken().check();
     writeDensityVdb(o.output, raster, o.surfaceOnly, o.input);
-    note("wrote " + o.output + ": grid 'density' (fog, surface at 0.5), voxel size " + std::to_string(*h) +
+    note("wrote " + o.output + ": grid 'density' (fog, surface at 0.5), voxel size " + messageNumber(*h) +
          (o.surfaceOnly ? ", values only near the surface" : "") + "; " + describe(raster.stats()));
 }
 

@@ -134,13 +134,16 @@ public:
         using ValueT = typename TreeT::ValueType;
         constexpr int kMaxSide = 8;
         const Interval3 ib = indexBox(box);
-        const Coord base(int(std::floor(ib.lo.x())), int(std::floor(ib.lo.y())), int(std::floor(ib.lo.z())));
-        const Vec3i dims(int(std::floor(ib.hi.x())) + 2 - base.x(), int(std::floor(ib.hi.y())) + 2 - base.y(),
-                         int(std::floor(ib.hi.z())) + 2 - base.z());
-        if (!ib.finite() || dims.x > kMaxSide || dims.y > kMaxSide || dims.z > kMaxSide) {
+        bool small = ib.finite();
+        for (int a = 0; a < 3 && small; ++a)
+            small = std::fabs(ib.lo[a]) < 1e9 && std::floor(ib.hi[a]) + 2 - std::floor(ib.lo[a]) <= kMaxSide;
+        if (!small) {
             for (std::size_t i = 0; i < n; ++i) out[i] = value(points[i]);
             return;
         }
+        const Coord base(int(std::floor(ib.lo.x())), int(std::floor(ib.lo.y())), int(std::floor(ib.lo.z())));
+        const Vec3i dims(int(std::floor(ib.hi.x())) + 2 - base.x(), int(std::floor(ib.hi.y())) + 2 - base.y(),
+                         int(std::floor(ib.hi.z())) + 2 - base.z());
         ValueT voxels[kMaxSide * kMaxSide * kMaxSide];
         Acc acc(mTree);
         sampleBlock(acc, base, dims, voxels);
@@ -487,6 +490,9 @@ public:
             c[k] = int(std::nearbyint(ia[k]));
         }
         const double s0 = ia[axis], s1 = ib[axis];
+        // The walk visits every voxel plane between the ends: an edge of a lattice far coarser
+        // than the grid (--voxel-size thousands of voxels) is left to the generic refinement.
+        if (!(std::fabs(s1 - s0) <= kMaxWalkVoxels)) return false;
         const double dir = s1 > s0 ? 1.0 : -1.0;
         Acc acc(mTree);
         auto sampleAt = [&](double s) {
@@ -516,6 +522,7 @@ public:
     }
 
 private:
+    static constexpr double kMaxWalkVoxels = 4096;
     static int clampIndex(double f) { return int(std::clamp(f, -double(1 << 30), double(1 << 30))); }
     static Coord lowerSupport(const openvdb::Vec3d& v) {
         auto c = [](double x) {

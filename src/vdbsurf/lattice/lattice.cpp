@@ -105,6 +105,16 @@ CoordBBox latticeCellRange(const Field& field, const LatticeFrame& frame) {
     if (!(frame.h > 0) || !std::isfinite(frame.h))
         throw Error("--voxel-size", "must be a positive number of world units, not " + std::to_string(frame.h));
     const Box3 d = field.domain();
+    // A spacing wider than the whole input puts it inside one or two cells: nothing of its shape
+    // is left, and the lattice's nodes lie so far out that a grid's index coordinates of them
+    // pass what an int holds (--voxel-size 1e300 crashed).
+    const double extent = std::max({d.max.x - d.min.x, d.max.y - d.min.y, d.max.z - d.min.z});
+    if (frame.h > extent) {
+        std::ostringstream s;
+        s << frame.h << " is wider than all of " << field.describe() << " (" << extent
+          << " along its longest side); choose a spacing that puts cells across it";
+        throw Error("--voxel-size", s.str());
+    }
     Coord lo, hi;
     for (int a = 0; a < 3; ++a) {
         const double n0 = std::floor((d.min[a] - frame.origin[a]) / frame.h);
