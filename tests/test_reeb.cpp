@@ -257,6 +257,13 @@ TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]")
     }
     CHECK_THROWS_WITH(buildClosedSurface(two, "two.obj"), Catch::Contains("two.obj") && Catch::Contains("non-manifold vertex"));
     CHECK_THROWS_WITH(makeHeightFunction(buildClosedSurface(bowtie, "o.obj"), Vec3d(0, 0, 0)), Catch::Contains("--axis"));
+    // A direction in huge or tiny numbers is still that direction (its length overflowed to inf,
+    // or underflowed to 0, and was refused as no direction).
+    const ClosedSurface octahedron = buildClosedSurface(bowtie, "o.obj");
+    const HeightFunction diagonal = makeHeightFunction(octahedron, Vec3d(1, 1, 0));
+    CHECK(makeHeightFunction(octahedron, Vec3d(1e300, 1e300, 0)).rank == diagonal.rank);
+    CHECK(makeHeightFunction(octahedron, Vec3d(1e300, 1e300, 0)).axis.x == Approx(diagonal.axis.x));
+    CHECK(makeHeightFunction(octahedron, Vec3d(1e-320, 0, 0)).axis == Vec3d(1, 0, 0));
     // The cube with its bottom face [0, 3, 2, 1] as two quads folded at a new vertex 8 between 0
     // and 2: closed and manifold, but vertex 8's two polygons run opposite ways round it.
     const Mesh cube = test::cubeMesh();

@@ -113,10 +113,13 @@ Vec3d acrossAxis(const Vec3d& axis) {
 }
 
 HeightFunction makeHeightFunction(const ClosedSurface& s, const Vec3d& axisIn) {
-    const double len = length(axisIn);
-    if (!(len > 0) || !std::isfinite(len)) throw Error("--axis", "the height axis must be a non-zero direction");
+    // Scaled by its largest component first, so that a direction given in huge or tiny numbers
+    // (1e300,1e300,0) does not overflow or underflow its length.
+    const double largest = std::max({std::fabs(axisIn.x), std::fabs(axisIn.y), std::fabs(axisIn.z)});
+    if (!(largest > 0) || !std::isfinite(largest)) throw Error("--axis", "the height axis must be a non-zero direction");
+    const Vec3d scaled = axisIn / largest;
     HeightFunction f;
-    f.axis = axisIn / len;
+    f.axis = scaled / length(scaled);
     const Vec3d e1 = acrossAxis(f.axis);
     const Vec3d e2 = cross(f.axis, e1);
     const std::size_t n = s.points.size();
