@@ -36,13 +36,12 @@ std::string voxelText(const Vec3d& v) {
 // Whether a job takes the mesh: "" if so, else the error it would stop with (without the file
 // name, which the report already gives).
 template <typename Job>
-std::string refusal(const std::string& path, Job&& job) {
+std::string refusal(Job&& job) {
     try {
         job();
         return "";
     } catch (const Error& e) {
-        const std::string what = e.what(), prefix = path + ": ";
-        return what.compare(0, prefix.size(), prefix) == 0 ? what.substr(prefix.size()) : what;
+        return e.message();
     }
 }
 
@@ -56,9 +55,9 @@ void describeMesh(const std::string& path, bool json) {
     // A closed orientable surface of c pieces has Euler characteristic 2c - 2g.
     const long genus = closed ? (2 * long(components) - euler) / 2 : -1;
     const std::size_t coincident = countCoincidentPoints(mesh);
-    const std::string subdivide = refusal(path, [&] { Sqrt2Subdivider s(mesh, path); });
+    const std::string subdivide = refusal([&] { Sqrt2Subdivider s(mesh, path); });
     reeb::ClosedSurface surface;
-    const std::string patches = refusal(path, [&] { surface = reeb::buildClosedSurface(mesh, path); });
+    const std::string patches = refusal([&] { surface = reeb::buildClosedSurface(mesh, path); });
     const Box3 b = mesh.bounds();
     if (json) {
         nlohmann::json j{{"file", path},

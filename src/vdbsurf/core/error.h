@@ -11,11 +11,13 @@ class Error : public std::runtime_error {
 public:
     // input: what the user gave (a file path, "--expr", "--voxel-size", a grid name ...).
     Error(std::string input, const std::string& message)
-        : std::runtime_error(input.empty() ? message : input + ": " + message), mInput(std::move(input)) {}
+        : std::runtime_error(input.empty() ? message : input + ": " + message), mInput(std::move(input)), mMessage(message) {}
     const std::string& input() const { return mInput; }
+    // What went wrong, without the input's name (what() is "input: message").
+    const std::string& message() const { return mMessage; }
 
 private:
-    std::string mInput;
+    std::string mInput, mMessage;
 };
 
 // A number as error messages print it: 9 significant digits, enough to tell a value the user

@@ -105,9 +105,8 @@ ClosedSurface buildClosedSurface(const Mesh& mesh, const std::string& inputName)
             s.mergedPoints = n;
             return s;
         } catch (const Error&) {
-            const std::string what = asGiven.what(), prefix = inputName + ": ";
-            throw Error(inputName, (what.compare(0, prefix.size(), prefix) == 0 ? what.substr(prefix.size()) : what) + " (merging the " +
-                                       std::to_string(n) + " points at the position of another does not mend it)");
+            throw Error(asGiven.input(), asGiven.message() + " (merging the " + std::to_string(n) +
+                                             " points at the position of another does not mend it)");
         }
     }
 }
