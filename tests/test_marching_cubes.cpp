@@ -167,7 +167,7 @@ TEST_CASE("output does not depend on the number of threads") {
 TEST_CASE("a band with holes (leaves switched off) meshes open but vertex-manifold, both methods, at any thread count") {
     // A user's grid whose band was cut (clipped, or leaves deactivated) has cells without data:
     // their polygons are left out, and where two such holes meet at a corner of the lattice, the
-    // surface left between them touched itself at one vertex (1-11 such vertices a mesh in
+    // surface left between them touched itself at one vertex (1-19 such vertices a mesh in
     // random clipped grids). The vertex is split, one per fan, as the weld does for closed meshes.
     auto g = openvdb::gridPtrCast<openvdb::FloatGrid>(test::makeSphereLevelSet(1.0, {0.013, -0.021, 0.007}, 0.05));
     std::size_t off = 0;
