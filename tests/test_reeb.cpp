@@ -264,6 +264,7 @@ TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]")
     CHECK(makeHeightFunction(octahedron, Vec3d(1e300, 1e300, 0)).rank == diagonal.rank);
     CHECK(makeHeightFunction(octahedron, Vec3d(1e300, 1e300, 0)).axis.x == Approx(diagonal.axis.x));
     CHECK(makeHeightFunction(octahedron, Vec3d(1e-320, 0, 0)).axis == Vec3d(1, 0, 0));
+    CHECK_THROWS_WITH(makeHeightFunction(octahedron, Vec3d(std::nan(""), 1, 0)), Catch::Contains("--axis"));
     // The cube with its bottom face [0, 3, 2, 1] as two quads folded at a new vertex 8 between 0
     // and 2: closed and manifold, but vertex 8's two polygons run opposite ways round it.
     const Mesh cube = test::cubeMesh();

@@ -112,7 +112,7 @@ int main(int argc, char** argv) {
     moved[1].center = moved[1].center + Vec3d(0.1, -0.05, 0.08);
     const DensityScene edited(moved, "paper scene, head moved");
     const Box3 d = scene.domain();
-    const double extent = std::max({d.extent().x, d.extent().y, d.extent().z});
+    const double extent = d.longestSide();
 
     bench::Table table(
         {"resolution", "method", "threads", "seconds", "voxels evaluated", "voxels updated", "leaves evaluated", "tiles", "speed-up"});
@@ -162,7 +162,7 @@ int main(int argc, char** argv) {
     const Box3 cd = before.domain();
     const int n = quick ? 128 : 512;
     for (bool surfaceOnly : {false, true})
-        editAgainstRebuild(table, before, after, n, std::max({cd.extent().x, cd.extent().y, cd.extent().z}) / n, surfaceOnly, repeat,
+        editAgainstRebuild(table, before, after, n, cd.longestSide() / n, surfaceOnly, repeat,
                            "creature (40), one blob moved");
     // The worst case for an edit: the body, most of the surface, moved at 1024³. An edit then redoes
     // about what a rebuild does, and should cost no more.
@@ -185,7 +185,7 @@ int main(int argc, char** argv) {
         const int nb = quick ? 128 : 512;
         const Box3 bd = indexed.domain();
         RasterOptions o;
-        o.voxelSize = std::max({bd.extent().x, bd.extent().y, bd.extent().z}) / nb;
+        o.voxelSize = bd.longestSide() / nb;
         o.surfaceOnly = true;
         ThreadLimit limit(2);
         RasterStats si, ss;
@@ -199,7 +199,7 @@ int main(int argc, char** argv) {
         // Coarse, because scanning takes most of a minute even so.
         const int nm = 96;
         MeshRequest req;
-        req.voxelSize = std::max({bd.extent().x, bd.extent().y, bd.extent().z}) / nm;
+        req.voxelSize = bd.longestSide() / nm;
         MeshReport rep;
         std::size_t polys = 0;
         const bench::Measure meshScan = bench::measureMedian(1, [&] { polys = meshField(scanned, req, rep).polygonCount(); });

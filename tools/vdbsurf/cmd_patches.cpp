@@ -32,7 +32,7 @@ Vec3d parseAxis(const std::string& text) {
     if (t == "z") return {0, 0, 1};
     const std::vector<double> v = parseNumbers("--axis", text, 3);
     const Vec3d a{v[0], v[1], v[2]};
-    if (!(std::max({std::fabs(a.x), std::fabs(a.y), std::fabs(a.z)}) > 0)) throw Error("--axis", "the axis must be a non-zero direction");
+    if (!(maxAbsComponent(a) > 0)) throw Error("--axis", "the axis must be a non-zero direction");
     return a;
 }
 

@@ -46,6 +46,9 @@ template <typename T> Vec3<T> vmin(const Vec3<T>& a, const Vec3<T>& b) {
 template <typename T> Vec3<T> vmax(const Vec3<T>& a, const Vec3<T>& b) {
     return {a.x > b.x ? a.x : b.x, a.y > b.y ? a.y : b.y, a.z > b.z ? a.z : b.z};
 }
+template <typename T> T maxComponent(const Vec3<T>& v) { return v.x > v.y ? (v.x > v.z ? v.x : v.z) : (v.y > v.z ? v.y : v.z); }
+// The largest |component|: a scale to divide by before taking a length that could overflow.
+template <typename T> T maxAbsComponent(const Vec3<T>& v) { return maxComponent(Vec3<T>{std::fabs(v.x), std::fabs(v.y), std::fabs(v.z)}); }
 
 using Vec3d = Vec3<double>;
 using Vec3f = Vec3<float>;
@@ -55,6 +58,7 @@ using Vec3i = Vec3<int>;
 struct Box3 {
     Vec3d min, max;
     Vec3d extent() const { return max - min; }
+    double longestSide() const { return maxComponent(extent()); }
     Vec3d center() const { return (min + max) * 0.5; }
     bool contains(const Vec3d& p) const {
         return p.x >= min.x && p.y >= min.y && p.z >= min.z && p.x <= max.x && p.y <= max.y && p.z <= max.z;

@@ -672,7 +672,7 @@ DensityRaster::DensityRaster(const DensityScene& scene, const RasterOptions& opt
     if (!(h > 0) || !std::isfinite(h)) throw Error("--voxel-size", "must be a positive number of world units");
     // As the mesher's lattice: a voxel wider than the whole scene holds nothing of its shape.
     const Box3 d = scene.domain();
-    const double extent = std::max({d.max.x - d.min.x, d.max.y - d.min.y, d.max.z - d.min.z});
+    const double extent = d.longestSide();
     if (h > extent)
         throw Error("--voxel-size", messageNumber(h) + " is wider than all of " + scene.describe() + " (" + messageNumber(extent) +
                                         " along its longest side); choose a voxel size that puts voxels across it");

@@ -108,7 +108,7 @@ CoordBBox latticeCellRange(const Field& field, const LatticeFrame& frame) {
     // A spacing wider than the whole input puts it inside one or two cells: nothing of its shape
     // is left, and the lattice's nodes lie so far out that a grid's index coordinates of them
     // pass what an int holds (--voxel-size 1e300 crashed).
-    const double extent = std::max({d.max.x - d.min.x, d.max.y - d.min.y, d.max.z - d.min.z});
+    const double extent = d.longestSide();
     if (frame.h > extent) {
         std::ostringstream s;
         s << frame.h << " is wider than all of " << field.describe() << " (" << extent

@@ -115,8 +115,9 @@ Vec3d acrossAxis(const Vec3d& axis) {
 HeightFunction makeHeightFunction(const ClosedSurface& s, const Vec3d& axisIn) {
     // Scaled by its largest component first, so that a direction given in huge or tiny numbers
     // (1e300,1e300,0) does not overflow or underflow its length.
-    const double largest = std::max({std::fabs(axisIn.x), std::fabs(axisIn.y), std::fabs(axisIn.z)});
-    if (!(largest > 0) || !std::isfinite(largest)) throw Error("--axis", "the height axis must be a non-zero direction");
+    const double largest = maxAbsComponent(axisIn);
+    if (!(largest > 0) || !std::isfinite(axisIn.x) || !std::isfinite(axisIn.y) || !std::isfinite(axisIn.z))
+        throw Error("--axis", "the height axis must be a non-zero direction");
     const Vec3d scaled = axisIn / largest;
     HeightFunction f;
     f.axis = scaled / length(scaled);
