@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <openvdb/openvdb.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -267,6 +268,62 @@ TEST_CASE("a terrain level set, its band open at the sides of its box, is meshed
     INFO(s.output);
     REQUIRE(s.exitCode == 0);
     CHECK(s.output.find("inactive voxels") == std::string::npos);
+}
+
+TEST_CASE("a camera frustum's grid is listed as one, meshed on its voxels and mapped through its frustum") {
+    // A fog ball in a frustum whose voxels widen with depth (taper 0.5), as renderers' camera
+    // volumes are: vdbsurf refused it by name; vdb_tool meshed it (volumeToMesh maps its points).
+    test::TempDir dir;
+    initializeOpenVdb();
+    auto xf = openvdb::math::Transform::createFrustumTransform(openvdb::BBoxd(openvdb::Vec3d(0), openvdb::Vec3d(47)), 0.5, 1.5, 2.4);
+    xf->postTranslate(openvdb::Vec3d(0, 0, 1));
+    const openvdb::Vec3d c = xf->indexToWorld(openvdb::Vec3d(23.5));
+    const double radius = 0.5;
+    auto fog = openvdb::FloatGrid::create(0.0f);
+    fog->setTransform(xf);
+    fog->setGridClass(openvdb::GRID_FOG_VOLUME);
+    fog->setName("density");
+    auto acc = fog->getAccessor();
+    for (int i = 0; i < 48; ++i)
+        for (int j = 0; j < 48; ++j)
+            for (int k = 0; k < 48; ++k) {
+                const double d = (xf->indexToWorld(openvdb::Coord(i, j, k)) - c).length() - radius;
+                if (d < 0.2) acc.setValue(openvdb::Coord(i, j, k), float(std::clamp(0.5 - d / 0.2, 0.0, 1.0)));
+            }
+    test::writeGrids(dir.path("camera.vdb"), {fog});
+
+    const auto info = runVdbsurf({"info", dir.path("camera.vdb")});
+    INFO(info.output);
+    REQUIRE(info.exitCode == 0);
+    CHECK(info.output.find("density: a camera frustum's transform") != std::string::npos);
+    const auto j = runVdbsurf({"-q", "info", "--json", dir.path("camera.vdb")});
+    REQUIRE(j.exitCode == 0);
+    CHECK(nlohmann::json::parse(j.output)["grids"][0]["transform"] == "frustum");
+
+    for (const char* method : {"dmc", "mc"}) {
+        const auto r = runVdbsurf({"mesh", dir.path("camera.vdb"), "-o", dir.path("ball.obj"), "--method", method});
+        INFO(r.output);
+        REQUIRE(r.exitCode == 0);
+        CHECK(r.output.find("a frustum grid") != std::string::npos);
+        const Mesh m = readMesh(dir.path("ball.obj"));
+        CHECK(checkTopology(m).closedManifoldOriented());
+        // Density 0.5 on the ball's surface (the ramp's middle), whatever the voxels' size.
+        double worst = 0;
+        for (const Vec3f& p : m.points)
+            worst = std::max(worst, std::fabs(length(Vec3d(p) - Vec3d(c.x(), c.y(), c.z())) - radius));
+        CHECK(worst < 0.01);
+    }
+    const auto lat = runVdbsurf({"-q", "mesh", dir.path("camera.vdb"), "-o", dir.path("ball.ply"), "--voxel-size", "0.1",
+                                 "--lattice-out", dir.path("lattice.vdb")});
+    INFO(lat.output);
+    REQUIRE(lat.exitCode == 0);
+    const auto latInfo = runVdbsurf({"-q", "info", "--json", dir.path("lattice.vdb")});
+    REQUIRE(latInfo.exitCode == 0);
+    for (const auto& g : nlohmann::json::parse(latInfo.output)["grids"]) CHECK(g["transform"] == "frustum");
+    const auto cmp = runVdbsurf({"compare", dir.path("camera.vdb")});
+    INFO(cmp.output);
+    REQUIRE(cmp.exitCode == 0);
+    CHECK(cmp.output.find("frustum's smallest voxels") != std::string::npos);
 }
 
 TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output") {

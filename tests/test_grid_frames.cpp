@@ -1,7 +1,9 @@
-// Grids whose transform rotates, mirrors or stretches their voxels are meshed in their own frame
-// (Field::ownFrame): on their voxels, as if those were world's, and the mesh mapped to world.
+// Grids whose transform rotates, mirrors or stretches their voxels, or is a camera's frustum, are
+// meshed in their own frame (Field::ownFrame): on their voxels, as if those were world's, and the
+// mesh mapped to world.
 #include "support/test_support.h"
 
+#include "vdbsurf/core/error.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/grid_field.h"
@@ -10,12 +12,15 @@
 #include "vdbsurf/quality/compare.h"
 #include "vdbsurf/vdb/vdb_file.h"
 #include "vdbsurf/vdb/volume_to_mesh_peer.h"
+#include "vdbsurf/vdb/voxel_transform.h"
 
 #include <catch2/catch.hpp>
 #include <openvdb/openvdb.h>
 
 #include <algorithm>
 #include <cmath>
+#include <random>
+#include <stdexcept>
 #include <string>
 
 using namespace vdbsurf;
@@ -89,7 +94,23 @@ std::vector<Case> transformedCases() {
         xf->postRotate(0.9, openvdb::math::X_AXIS);
         out.push_back({"stretched and rotated", xf, false});
     }
+    for (const bool mirrored : {false, true}) {
+        // A camera's frustum over the grid's voxels (index -20 .. 20 each way): voxels widen by
+        // 1 / 0.6 from the near plane to the far one, turned and moved; mirrored by its second map.
+        auto xf = openvdb::math::Transform::createFrustumTransform(openvdb::BBoxd(openvdb::Vec3d(-20), openvdb::Vec3d(20)), 0.6, 1.2, 0.07);
+        if (mirrored) xf->postScale(openvdb::Vec3d(1, -1, 1));
+        xf->postRotate(0.4, openvdb::math::Y_AXIS);
+        xf->postTranslate(openvdb::Vec3d(0.3, 0.1, 2.0));
+        out.push_back({mirrored ? "mirrored frustum" : "frustum", xf, mirrored});
+    }
     return out;
+}
+
+// The frustum cases of transformedCases().
+Case frustumCase(bool mirrored) {
+    for (const Case& c : transformedCases())
+        if (!c.xform->isLinear() && c.mirrors == mirrored) return c;
+    throw std::logic_error("no frustum case");
 }
 
 Mesh meshGrid(const GridField& field, MeshMethod method, double spacing, MeshReport& report) {
@@ -101,7 +122,7 @@ Mesh meshGrid(const GridField& field, MeshMethod method, double spacing, MeshRep
 
 } // namespace
 
-TEST_CASE("a grid whose transform rotates, mirrors or stretches its voxels is meshed on them, then mapped to world") {
+TEST_CASE("a grid whose transform rotates, mirrors, stretches its voxels or is a frustum is meshed on them, then mapped to world") {
     initializeOpenVdb();
     const openvdb::FloatGrid::Ptr base = boxWithRod();
     const GridField baseField(base, "base");
@@ -111,18 +132,20 @@ TEST_CASE("a grid whose transform rotates, mirrors or stretches its voxels is me
         const GridBaseCPtr grid = base->copyGridReplacingTransform(c.xform);
         const GridField field(grid, c.name);
         REQUIRE(field.ownFrame() != nullptr);
-        CHECK(field.ownFrame()->toWorld.mirrors() == c.mirrors);
-        // At the grid's voxel size (its own voxels the lattice) and at two voxels a cell.
-        for (const double spacing : {0.0, 2 * kVoxel})
+        CHECK(field.ownFrame()->mirrors() == c.mirrors);
+        CHECK((field.ownFrame()->curved != nullptr) == !c.xform->isLinear());
+        // At the grid's voxel size (its own voxels the lattice) and at two voxels a cell (the
+        // frame's voxels are the grid's smallest).
+        for (const double voxels : {0, 2})
         for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
-            INFO(methodName(method) << " at spacing " << spacing);
+            INFO(methodName(method) << " at " << voxels << " voxels a cell");
             MeshReport baseReport, report;
-            const Mesh aligned = meshGrid(baseField, method, spacing, baseReport);
-            const Mesh m = meshGrid(field, method, spacing, report);
-            REQUIRE(report.frameToWorld);
+            const Mesh aligned = meshGrid(baseField, method, voxels * kVoxel, baseReport);
+            const Mesh m = meshGrid(field, method, voxels * *field.naturalSpacing(), report);
+            REQUIRE(report.ownFrame);
             if (method == MeshMethod::Dmc) {
                 // The shape exercises both of DMC's steps (the rod is thin on the coarser lattice).
-                if (spacing > 0) CHECK(report.thinNodesMoved > 0);
+                if (voxels > 0) CHECK(report.thinNodesMoved > 0);
                 CHECK(report.nodesOnEdges + report.nodesOnCorners > 0);
             }
             // The same mesh as on the axis-aligned grid (whose voxel centres are index * kVoxel),
@@ -146,9 +169,13 @@ TEST_CASE("a grid whose transform rotates, mirrors or stretches its voxels is me
             CHECK(reversed == c.mirrors);
             // Closed, and facing out of the solid whatever the map's handedness.
             CHECK(checkTopology(m).closedManifoldOriented());
-            const double det = field.ownFrame()->toWorld.determinant();
             CHECK(signedVolume(aligned) > 0);
-            CHECK(signedVolume(m) == Approx(signedVolume(aligned) * std::fabs(det)).epsilon(1e-4));
+            if (field.ownFrame()->curved) {
+                CHECK(signedVolume(m) > 0);
+            } else {
+                const double det = field.ownFrame()->toWorld.determinant();
+                CHECK(signedVolume(m) == Approx(signedVolume(aligned) * std::fabs(det)).epsilon(1e-4));
+            }
         }
     }
 }
@@ -182,8 +209,8 @@ TEST_CASE("compare on a rotated grid measures what it measures on the same voxel
     mreq.method = MeshMethod::MarchingCubes;
     MeshReport mrep;
     meshField(field, mreq, mrep);
-    REQUIRE(mrep.frameToWorld);
-    const PeerMesh same = volumeToMeshPeer(field.grid(), 0.0, &mrep.frame, &*mrep.frameToWorld);
+    REQUIRE(mrep.ownFrame);
+    const PeerMesh same = volumeToMeshPeer(field.grid(), 0.0, &mrep.frame, mrep.ownFrame);
     CHECK(!same.resampled);
     CHECK(same.mesh.points.size() == rep.rows[0].vertices);
     req.voxelSize = 2 * kVoxel;
@@ -191,42 +218,208 @@ TEST_CASE("compare on a rotated grid measures what it measures on the same voxel
     CHECK(coarse.resampled);
 }
 
-TEST_CASE("the deformed lattice of a rotated grid (--lattice-out) turns with the grid and its offsets are world vectors") {
+TEST_CASE("the deformed lattice of a rotated or frustum grid (--lattice-out) follows the grid and its offsets are world vectors") {
     initializeOpenVdb();
     test::TempDir dir;
     const openvdb::FloatGrid::Ptr base = boxWithRod();
-    const Case c = transformedCases()[0];
-    const GridField field(base->copyGridReplacingTransform(c.xform), c.name);
-    const std::string path = dir.path("lattice.vdb");
-    MeshRequest req;
-    std::vector<std::pair<openvdb::Coord, Vec3d>> moved; // node, its moved position in world
-    req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const AffineMap* toWorld) {
-        REQUIRE(toWorld != nullptr);
-        writeLatticeVdb(path, lattice, deformation, {}, toWorld);
-        for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
-            const openvdb::Coord n = it.getCoord();
-            const Vec3d p = lattice.frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(it->x(), it->y(), it->z());
-            moved.emplace_back(n, toWorld->apply(p));
+    for (const Case& c : {transformedCases()[0], frustumCase(true)}) {
+        INFO(c.name);
+        const GridField field(base->copyGridReplacingTransform(c.xform), c.name);
+        const std::string path = dir.path(c.mirrors ? "frustum_lattice.vdb" : "lattice.vdb");
+        MeshRequest req;
+        std::vector<std::pair<openvdb::Coord, Vec3d>> moved; // node, its moved position in world
+        req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const OwnFrame* own) {
+            REQUIRE(own != nullptr);
+            writeLatticeVdb(path, lattice, deformation, {}, own);
+            for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
+                const openvdb::Coord n = it.getCoord();
+                const Vec3d p = lattice.frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(it->x(), it->y(), it->z());
+                moved.emplace_back(n, own->apply(p));
+            }
+        };
+        MeshReport rep;
+        meshField(field, req, rep);
+        REQUIRE(!moved.empty());
+        openvdb::io::File file(path);
+        file.open();
+        const auto offsets = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid("offsets"));
+        file.close();
+        REQUIRE(offsets);
+        // At the grid's voxel size the lattice's nodes are the grid's voxels.
+        for (const openvdb::Coord& ijk : {openvdb::Coord(0, 0, 0), openvdb::Coord(3, -2, 5), openvdb::Coord(-7, 4, 1)}) {
+            const openvdb::Vec3d a = offsets->transform().indexToWorld(ijk), b = c.xform->indexToWorld(ijk);
+            CHECK((a - b).length() < 1e-9);
         }
-    };
-    MeshReport rep;
-    meshField(field, req, rep);
-    REQUIRE(!moved.empty());
-    openvdb::io::File file(path);
-    file.open();
-    const auto offsets = openvdb::gridPtrCast<openvdb::Vec3SGrid>(file.readGrid("offsets"));
-    file.close();
-    REQUIRE(offsets);
-    // At the grid's voxel size the lattice's nodes are the grid's voxels.
-    for (const openvdb::Coord& ijk : {openvdb::Coord(0, 0, 0), openvdb::Coord(3, -2, 5), openvdb::Coord(-7, 4, 1)}) {
-        const openvdb::Vec3d a = offsets->transform().indexToWorld(ijk), b = c.xform->indexToWorld(ijk);
-        CHECK((a - b).length() < 1e-9);
+        // A moved node: its voxel's centre plus its offset is where the mesher moved it, in world.
+        double worst = 0;
+        for (const auto& [n, world] : moved) {
+            const openvdb::Vec3d p = offsets->transform().indexToWorld(n) + openvdb::Vec3d(offsets->tree().getValue(n));
+            worst = std::max(worst, length(Vec3d(p.x(), p.y(), p.z()) - world));
+        }
+        CHECK(worst < 1e-6);
     }
-    // A moved node: its voxel's centre plus its offset is where the mesher moved it, in world.
-    double worst = 0;
-    for (const auto& [n, world] : moved) {
-        const openvdb::Vec3d p = offsets->transform().indexToWorld(n) + openvdb::Vec3d(offsets->tree().getValue(n));
-        worst = std::max(worst, length(Vec3d(p.x(), p.y(), p.z()) - world));
+}
+
+namespace {
+
+// A sphere's signed distance in world, sampled at every voxel of a frustum grid's index box
+// (-20 .. 20): the sphere sits in the middle of the frustum, 0.3 of its near plane's width across.
+struct FrustumSphere {
+    openvdb::FloatGrid::Ptr grid;
+    Vec3d centre;
+    double radius = 0;
+};
+
+FrustumSphere frustumSphere(const openvdb::math::Transform::Ptr& xform) {
+    FrustumSphere s;
+    const openvdb::Vec3d c = xform->indexToWorld(openvdb::Vec3d(0, 0, 0));
+    s.centre = Vec3d(c.x(), c.y(), c.z());
+    s.radius = 0.3 * (xform->indexToWorld(openvdb::Vec3d(20, 0, -20)) - xform->indexToWorld(openvdb::Vec3d(-20, 0, -20))).length();
+    s.grid = openvdb::FloatGrid::create(float(s.radius));
+    s.grid->setTransform(xform);
+    s.grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    auto acc = s.grid->getAccessor();
+    for (int i = -20; i <= 20; ++i)
+        for (int j = -20; j <= 20; ++j)
+            for (int k = -20; k <= 20; ++k) {
+                const openvdb::Vec3d w = xform->indexToWorld(openvdb::Coord(i, j, k));
+                acc.setValue(openvdb::Coord(i, j, k), float(length(Vec3d(w.x(), w.y(), w.z()) - s.centre) - s.radius));
+            }
+    return s;
+}
+
+} // namespace
+
+TEST_CASE("a frustum grid answers in world space through its frustum: values, gradients, bounds and domain") {
+    initializeOpenVdb();
+    for (const bool mirrored : {false, true}) {
+        const Case c = frustumCase(mirrored);
+        INFO(c.name);
+        const FrustumSphere s = frustumSphere(c.xform);
+        const GridField field(s.grid, c.name);
+        REQUIRE(field.ownFrame() != nullptr);
+        REQUIRE(field.ownFrame()->curved != nullptr);
+        // The frame's voxel is the smallest: at the near plane (taper 0.6 widens them with depth).
+        CHECK(*field.naturalSpacing() == Approx(c.xform->voxelSize(openvdb::Vec3d(-20, -20, -20)).x()).epsilon(1e-9));
+
+        const Box3 domain = field.domain();
+        double worstValue = 0;
+        for (int i = -20; i <= 20; i += 5)
+            for (int j = -20; j <= 20; j += 5)
+                for (int k = -20; k <= 20; k += 5) {
+                    const openvdb::Vec3d w = c.xform->indexToWorld(openvdb::Coord(i, j, k));
+                    const Vec3d p(w.x(), w.y(), w.z());
+                    CHECK(domain.contains(p));
+                    worstValue = std::max(worstValue, std::fabs(field.value(p) - double(s.grid->tree().getValue(openvdb::Coord(i, j, k)))));
+                }
+        CHECK(worstValue < 1e-5);
+
+        // Near the sphere the gradient is the distance's: the unit vector from its centre (it
+        // was the frame's gradient, off by the frustum's scale, before it went through the map).
+        std::mt19937 rng(7);
+        std::uniform_real_distribution<double> unit(-1, 1);
+        double worstGradient = 0;
+        for (int n = 0; n < 200; ++n) {
+            const Vec3d d = normalized(Vec3d(unit(rng), unit(rng), unit(rng)));
+            const Vec3d p = s.centre + d * (s.radius * (1 + 0.1 * unit(rng)));
+            Vec3d g;
+            const double v = field.valueAndGradient(p, g);
+            CHECK(v == field.value(p));
+            CHECK(g == field.gradient(p));
+            worstGradient = std::max(worstGradient, length(g - d));
+        }
+        CHECK(worstGradient < 0.1);
+
+        // Bounds hold every value in random boxes, also boxes that reach behind the camera.
+        const openvdb::Vec3d apex = c.xform->indexToWorld(openvdb::Vec3d(0, 0, -100)); // behind the apex (index depth -80)
+        const Vec3d behind(apex.x(), apex.y(), apex.z());
+        int outside = 0, reachingBehind = 0;
+        for (int b = 0; b < 300; ++b) {
+            const Vec3d from = b % 5 == 0 ? behind : s.centre;
+            const Vec3d a = from + Vec3d(unit(rng), unit(rng), unit(rng)) * (2 * s.radius);
+            const Vec3d e = Vec3d(std::fabs(unit(rng)), std::fabs(unit(rng)), std::fabs(unit(rng))) * (b % 3 == 0 ? 2 * s.radius : 0.2 * s.radius);
+            const Box3 box{a, a + e};
+            const Interval r = field.bounds(box);
+            reachingBehind += r.lo == field.valueRange().lo && r.hi == field.valueRange().hi;
+            for (int n = 0; n < 40; ++n) {
+                const Vec3d p = box.min + Vec3d(e.x * (0.5 + 0.5 * unit(rng)), e.y * (0.5 + 0.5 * unit(rng)), e.z * (0.5 + 0.5 * unit(rng)));
+                const double v = field.value(p);
+                outside += !(v >= r.lo - 1e-6 && v <= r.hi + 1e-6);
+            }
+            for (int corner = 0; corner < 8; ++corner) {
+                const double v = field.value(box.corner(corner));
+                outside += !(v >= r.lo - 1e-6 && v <= r.hi + 1e-6);
+            }
+        }
+        CHECK(outside == 0);
+        CHECK(reachingBehind > 0);
+        CHECK(reachingBehind < 300);
     }
-    CHECK(worst < 1e-6);
+}
+
+TEST_CASE("a frustum grid's sphere comes out closed, facing out and on the sphere, and compare measures it in world") {
+    initializeOpenVdb();
+    for (const bool mirrored : {false, true}) {
+        const Case c = frustumCase(mirrored);
+        INFO(c.name);
+        const FrustumSphere s = frustumSphere(c.xform);
+        const GridField field(s.grid, c.name);
+        const double farVoxel = c.xform->voxelSize(openvdb::Vec3d(20, 20, 20)).length();
+        for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
+            INFO(methodName(method));
+            MeshReport rep;
+            const Mesh m = meshGrid(field, method, 0, rep);
+            CHECK(checkTopology(m).closedManifoldOriented());
+            CHECK(signedVolume(m) > 0);
+            double worst = 0;
+            for (const Vec3f& p : m.points) worst = std::max(worst, std::fabs(length(Vec3d(p) - s.centre) - s.radius));
+            CHECK(worst < 0.05 * farVoxel);
+        }
+        CompareRequest req;
+        const CompareReport own = compareMeshers(field, req);
+        REQUIRE(own.rows.size() == 3);
+        CHECK(!own.resampled);
+        for (const CompareRow& row : own.rows) {
+            INFO(row.method);
+            CHECK(row.topology.closedManifoldOriented());
+            CHECK(row.quality.coverageOne > 0.99);
+            CHECK(row.quality.meanDistance < 0.1);
+        }
+        // At two voxels a cell volumeToMesh meshes the grid resampled onto the lattice vdbsurf
+        // used, whose transform is a frustum too: node i where the frame's map puts it.
+        req.voxelSize = 2 * *field.naturalSpacing();
+        const CompareReport coarse = compareMeshers(field, req);
+        CHECK(coarse.resampled);
+        for (const CompareRow& row : coarse.rows) {
+            INFO(row.method << " at two voxels");
+            CHECK(row.topology.closedManifoldOriented());
+            CHECK(row.quality.coverageOne > 0.99);
+        }
+        MeshReport rep;
+        meshGrid(field, MeshMethod::MarchingCubes, *req.voxelSize, rep);
+        REQUIRE(rep.ownFrame);
+        const auto xform = latticeTransform(rep.frame, rep.ownFrame, "test");
+        double worst = 0;
+        for (const Vec3i& n : {Vec3i(0, 0, 0), Vec3i(3, -2, 5), Vec3i(-7, 4, 1), Vec3i(9, 9, -9)}) {
+            const openvdb::Vec3d a = xform->indexToWorld(openvdb::Vec3d(n.x, n.y, n.z));
+            worst = std::max(worst, length(Vec3d(a.x(), a.y(), a.z()) - rep.ownFrame->apply(rep.frame.nodeWorld(n))));
+        }
+        CHECK(worst < 1e-9);
+    }
+}
+
+TEST_CASE("a frustum grid whose data reaches behind its camera is refused, naming the grid") {
+    initializeOpenVdb();
+    const Case c = frustumCase(false);
+    FrustumSphere s = frustumSphere(c.xform);
+    s.grid->tree().setValue(openvdb::Coord(0, 0, -100), 0.5f); // index depth -80 is the apex
+    try {
+        const GridField field(s.grid, "cam.vdb:density");
+        FAIL("accepted");
+    } catch (const Error& e) {
+        const std::string what = e.what();
+        INFO(what);
+        CHECK(what.find("cam.vdb:density") != std::string::npos);
+        CHECK(what.find("apex") != std::string::npos);
+    }
 }

@@ -74,7 +74,9 @@ void runCompare(const CompareOptions& o) {
 
     const double h = rep.voxelSize;
     std::cout << source << ": iso " << rep.iso << " (" << rep.isoReason << "), spacing H = " << rep.voxelSize
-              << (rep.resampled ? " (volumeToMesh on the grid resampled to H)" : " (the grid's voxel size)") << ", "
+              << (rep.resampled ? " (volumeToMesh on the grid resampled to H)" : " (the grid's voxel size)")
+              << (field.ownFrame() && field.ownFrame()->curved ? " at the frustum's smallest voxels (the lattices widen with them)" : "")
+              << ", "
               << threads.threads() << (threads.threads() == 1 ? " thread" : " threads") << "\n"
               << "quality against the grid's own iso surface (" << rep.surfaceSamples
               << " points at its voxel size): distances of mesh points to it, share of it within H/4 and H of the mesh\n\n";

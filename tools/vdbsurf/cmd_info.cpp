@@ -132,7 +132,8 @@ Action addInfoCommand(CLI::App& app) {
             for (const auto& g : grids) {
                 nlohmann::json j{{"name", g.name}, {"type", g.valueType}, {"class", g.gridClass},
                                  {"voxel_size", {g.voxelSize.x, g.voxelSize.y, g.voxelSize.z}},
-                                 {"active_voxels", g.activeVoxels}, {"meshable", g.scalar}};
+                                 {"transform", g.frustum ? "frustum" : "linear"}, {"active_voxels", g.activeVoxels},
+                                 {"meshable", g.scalar}};
                 if (!g.empty)
                     j["world_bbox"] = {{g.worldBounds.min.x, g.worldBounds.min.y, g.worldBounds.min.z},
                                        {g.worldBounds.max.x, g.worldBounds.max.y, g.worldBounds.max.z}};
@@ -161,6 +162,11 @@ Action addInfoCommand(CLI::App& app) {
                       << (g.empty ? std::string("(empty)") : vecText(g.worldBounds.min) + " .. " + vecText(g.worldBounds.max))
                       << "\n";
         }
+        for (const auto& g : grids)
+            if (g.frustum)
+                std::cout << "  " << g.name << ": a camera frustum's transform, its voxel size at the near plane's centre (voxels "
+                          << "widen with depth)" << (g.scalar ? "; meshed on its voxels, the mesh mapped through the frustum" : "")
+                          << "\n";
     };
 }
 

@@ -120,10 +120,10 @@ void runMesh(const MeshOptions& o) {
     req.sharpNoiseShare = o.sharpNoise;
     req.cancel = &processCancelToken();
     if (!o.latticeOut.empty())
-        req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const AffineMap* frameToWorld) {
+        req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const OwnFrame* frame) {
             writeLatticeVdb(o.latticeOut, lattice, deformation,
                             {{"vdbsurf_version", VDBSURF_VERSION}, {"vdbsurf_source", source}, {"vdbsurf_content", "DMC deformed lattice"}},
-                            frameToWorld);
+                            frame);
             note("wrote " + o.latticeOut + ": the deformed lattice (" + std::to_string(deformation.movedNodes()) + " nodes moved)");
         };
     MeshReport rep;

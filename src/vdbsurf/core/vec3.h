@@ -63,6 +63,14 @@ struct Box3 {
     bool contains(const Vec3d& p) const {
         return p.x >= min.x && p.y >= min.y && p.z >= min.z && p.x <= max.x && p.y <= max.y && p.z <= max.z;
     }
+    // Corner c of 8: bit 0 picks max.x, bit 1 max.y, bit 2 max.z.
+    Vec3d corner(int c) const { return {(c & 1) ? max.x : min.x, (c & 2) ? max.y : min.y, (c & 4) ? max.z : min.z}; }
+    // The smallest box holding n points (n > 0).
+    static Box3 around(const Vec3d* p, std::size_t n) {
+        Box3 b{p[0], p[0]};
+        for (std::size_t i = 1; i < n; ++i) b.min = vmin(b.min, p[i]), b.max = vmax(b.max, p[i]);
+        return b;
+    }
 };
 
 } // namespace vdbsurf

@@ -30,9 +30,9 @@ void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
 }
 
 void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
-                     const std::map<std::string, std::string>& metadata, const AffineMap* frameToWorld) {
+                     const std::map<std::string, std::string>& metadata, const OwnFrame* own) {
     initializeOpenVdb();
-    const auto xform = latticeTransform(lattice.frame, frameToWorld, path);
+    const auto xform = latticeTransform(lattice.frame, own, path);
 
     // Nodes of active cells: the cells dilated by one towards +x, +y, +z.
     const openvdb::MaskTree::Ptr cellMask = toStandardMaskTree(*lattice.cells);
@@ -47,11 +47,12 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     offsets->tree().topologyUnion(nodes);
     auto acc = offsets->getAccessor();
     for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
-        if (!frameToWorld) {
+        if (!own) {
             acc.setValue(it.getCoord(), *it);
             continue;
         }
-        const Vec3d w = frameToWorld->linear(Vec3d(it->x(), it->y(), it->z()));
+        const openvdb::Coord& c = it.getCoord();
+        const Vec3d w = own->offsetToWorld(lattice.frame.nodeWorld(Vec3i(c.x(), c.y(), c.z())), Vec3d(it->x(), it->y(), it->z()));
         acc.setValue(it.getCoord(), openvdb::Vec3f(float(w.x), float(w.y), float(w.z)));
     }
     offsets->setName("offsets");

@@ -6,8 +6,8 @@
 // edges move onto it. Sparse VDB trees in lattice node index space (with small internal nodes:
 // vdb/sparse_tree.h); --lattice-out writes the offsets as a standard Vec3f grid.
 #pragma once
-#include "vdbsurf/core/affine_map.h"
 #include "vdbsurf/core/lattice_frame.h"
+#include "vdbsurf/field/field.h"
 #include "vdbsurf/vdb/sparse_tree.h"
 
 #include <openvdb/openvdb.h>
@@ -65,10 +65,11 @@ void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes);
 // Writes the deformed lattice as a .vdb readable by any OpenVDB tool: a Vec3f grid "offsets"
 // (world-unit node offsets; every node of an active cell is active, unmoved nodes hold zero), a
 // mask grid "cells" (the lattice's active cells) and a mask grid "on_surface" (nodes placed on
-// sharp features), with the lattice spacing and origin as their transform. frameToWorld (not
-// null where the lattice lies in a field's own frame) maps it to world: the grids' transform
-// follows the frame (a rotated grid's lattice is rotated with it), the offsets are world vectors.
+// sharp features), with the lattice spacing and origin as their transform. `own` (not null where
+// the lattice lies in a field's own frame) maps it to world: the grids' transform follows the
+// frame (a rotated grid's lattice is rotated with it, a frustum grid's is a frustum), the
+// offsets are world vectors (from the node's place to where it moved).
 void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
-                     const std::map<std::string, std::string>& metadata, const AffineMap* frameToWorld = nullptr);
+                     const std::map<std::string, std::string>& metadata, const OwnFrame* own = nullptr);
 
 } // namespace vdbsurf

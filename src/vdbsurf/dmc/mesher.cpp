@@ -11,6 +11,9 @@
 #include "vdbsurf/lattice/lattice.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <chrono>
 #include <functional>
@@ -47,13 +50,16 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     if (const OwnFrame* own = field.ownFrame()) {
         MeshRequest inFrame = request;
         if (request.deformedLattice)
-            inFrame.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const AffineMap*) {
-                request.deformedLattice(lattice, deformation, &own->toWorld);
+            inFrame.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const OwnFrame*) {
+                request.deformedLattice(lattice, deformation, own);
             };
         Mesh mesh = meshField(*own->field, inFrame, report);
-        report.frameToWorld = own->toWorld;
-        for (Vec3f& p : mesh.points) p = Vec3f(own->toWorld.apply(Vec3d(p)));
-        if (own->toWorld.mirrors())
+        report.ownFrame = own;
+        if (own->curved) report.voxelSizeReason += "; a frustum grid: measured where its voxels are smallest, the lattice widens with them";
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.points.size(), 4096), [&](const auto& r) {
+            for (std::size_t i = r.begin(); i != r.end(); ++i) mesh.points[i] = Vec3f(own->apply(Vec3d(mesh.points[i])));
+        });
+        if (own->mirrors())
             for (std::size_t f = 0; f < mesh.polygonCount(); ++f)
                 std::reverse(mesh.indices.begin() + mesh.offsets[f], mesh.indices.begin() + mesh.offsets[f + 1]);
         return mesh;

@@ -54,8 +54,8 @@ struct MeshRequest {
     // result for `compare`, not an error: return the empty mesh instead of throwing.
     bool allowEmpty = false;
     // Called with the deformed lattice before the final surface is built (--lattice-out); the
-    // lattice lies in the field's own frame, mapped to world by frameToWorld where not null.
-    std::function<void(const Lattice&, const LatticeDeformation&, const AffineMap* frameToWorld)> deformedLattice;
+    // lattice lies in the field's own frame, mapped to world by `frame` where not null.
+    std::function<void(const Lattice&, const LatticeDeformation&, const OwnFrame* frame)> deformedLattice;
     // Bytes the mesh may take while it is made (buildLattice's estimate); 0: 80 % of the memory
     // free when meshing starts.
     double memoryLimit = 0;
@@ -68,7 +68,7 @@ struct MeshReport {
     double voxelSize = 0;
     std::string voxelSizeReason;
     LatticeFrame frame;                  // the lattice, in the field's own frame where it has one
-    std::optional<AffineMap> frameToWorld; // that frame's map to world (Field::ownFrame), if any
+    const OwnFrame* ownFrame = nullptr;  // that frame and its map to world (the field's: valid while it lives), if any
     std::uint64_t upperNodesTested = 0, leafBlocksTested = 0, leafBlocksVisited = 0;
     std::uint64_t cellsExamined = 0, cellsActive = 0, cellsWithSurface = 0;
     std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;

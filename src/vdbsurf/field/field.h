@@ -7,6 +7,7 @@
 #include "vdbsurf/core/affine_map.h"
 #include "vdbsurf/core/lattice_frame.h"
 #include "vdbsurf/core/vec3.h"
+#include "vdbsurf/vdb/openvdb_fwd.h"
 
 #include <algorithm>
 #include <cmath>
@@ -62,9 +63,33 @@ class Field;
 // world (meshField): the nodes sit on the voxels, as volumeToMesh's do. Meshed on a world-axis
 // lattice instead, a rotated grid's cube came out farther from its own surface than
 // volumeToMesh's (F at H/4 0.993 against 1.000) and three times slower.
+//
+// A frame no affine map takes to world is curved: a frustum grid's index space, whose voxels
+// widen with depth (a perspective map). Its mesh is mapped point by point, as volumeToMesh maps
+// its points through the grid's transform.
+class CurvedFrameMap {
+public:
+    virtual ~CurvedFrameMap() = default;
+    virtual Vec3d apply(const Vec3d& p) const = 0;
+    // True when the map turns outward-facing polygons inward (its Jacobian's determinant, which
+    // keeps one sign over the frame, is negative).
+    virtual bool mirrors() const = 0;
+    // The OpenVDB transform whose voxel (i, j, k) is apply(frame.nodeWorld(i, j, k)). Throws Error
+    // naming `what` when OpenVDB cannot store it.
+    virtual std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const std::string& what) const = 0;
+};
+
 struct OwnFrame {
-    std::shared_ptr<const Field> field; // the same values, in frame coordinates
-    AffineMap toWorld;                  // frame coordinates -> world
+    std::shared_ptr<const Field> field;            // the same values, in frame coordinates
+    AffineMap toWorld;                             // frame coordinates -> world, where `curved` is null
+    std::shared_ptr<const CurvedFrameMap> curved;  // the map, where it is not affine
+
+    Vec3d apply(const Vec3d& p) const { return curved ? curved->apply(p) : toWorld.apply(p); }
+    bool mirrors() const { return curved ? curved->mirrors() : toWorld.mirrors(); }
+    // The world vector from frame point p's image to (p + offset)'s.
+    Vec3d offsetToWorld(const Vec3d& p, const Vec3d& offset) const {
+        return curved ? curved->apply(p + offset) - curved->apply(p) : toWorld.linear(offset);
+    }
 };
 
 class Field {

@@ -1,4 +1,5 @@
 #include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/field/grid_field_impl.h"
 
 #include "vdbsurf/field/tree_ranges.h"
 
@@ -46,30 +47,6 @@ openvdb::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
 
 } // namespace
 
-// Type-erased grid access; one implementation per value type, in this translation unit only.
-struct GridField::Impl {
-    virtual ~Impl() = default;
-    virtual double value(const Vec3d& p) const = 0;
-    virtual Vec3d gradient(const Vec3d& p) const = 0;
-    virtual double valueAndGradient(const Vec3d& p, Vec3d& gradient) const = 0;
-    virtual void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const = 0;
-    virtual Interval bounds(const Box3& box) const = 0;
-    virtual bool mayStraddle(const Box3& box, double iso) const = 0;
-    virtual Box3 domain() const = 0;
-    virtual Interval valueRange() const = 0;
-    virtual double voxelSize() const = 0;
-    virtual bool axisAligned() const = 0;
-    virtual LatticeFrame naturalFrame(double h) const = 0;
-    virtual void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
-                             const std::uint8_t* needed, double* out) const = 0;
-    virtual bool directStride(const LatticeFrame& frame, int& stride, Coord& offset) const = 0;
-    virtual bool cellsInsideVoxelCells(const LatticeFrame& frame) const = 0;
-    virtual void dropCellsWithoutData(const LatticeFrame& frame, const Vec3i& first, std::uint64_t* cells) const = 0;
-    virtual void pointsWithData(const Vec3f* points, std::size_t n, std::uint8_t* out) const = 0;
-    virtual bool piecewiseLinearCrossing(const Vec3d& a, const Vec3d& b, double iso, Inside side, double& t) const = 0;
-    virtual GridBaseCPtr grid() const = 0;
-};
-
 namespace {
 
 // BoxSampler's trilinear interpolation at fraction uvw from the voxel at (x, y, z) of a block
@@ -94,9 +71,7 @@ public:
     using Acc = openvdb::tree::ValueAccessor<const TreeT, /*IsSafe=*/false>;
 
     TypedGrid(typename GridT::ConstPtr grid, const std::string& label) : mGrid(std::move(grid)), mTree(mGrid->constTree()) {
-        const openvdb::math::MapBase& map = *mGrid->transform().baseMap();
-        if (!map.isLinear())
-            throw Error(label, "has a non-linear (frustum) transform; vdbsurf samples grids with linear transforms only");
+        const openvdb::math::MapBase& map = *mGrid->transform().baseMap(); // linear: GridField checked
         const openvdb::Mat4d m = map.getAffineMap()->getConstMat4();
         mAxisAligned = true;
         for (int r = 0; r < 3; ++r)
@@ -227,8 +202,7 @@ public:
         if (mAxisAligned) return {worldToIndex(box.min), worldToIndex(box.max)};
         Interval3 out{openvdb::Vec3d(std::numeric_limits<double>::infinity()), openvdb::Vec3d(-std::numeric_limits<double>::infinity())};
         for (int c = 0; c < 8; ++c) {
-            const Vec3d corner((c & 1) ? box.max.x : box.min.x, (c & 2) ? box.max.y : box.min.y, (c & 4) ? box.max.z : box.min.z);
-            const openvdb::Vec3d ip = worldToIndex(corner);
+            const openvdb::Vec3d ip = worldToIndex(box.corner(c));
             out.lo = openvdb::math::minComponent(out.lo, ip);
             out.hi = openvdb::math::maxComponent(out.hi, ip);
         }
@@ -730,12 +704,16 @@ private:
 
 GridField::GridField(GridBaseCPtr grid, std::string label, std::optional<Inside> inside) : mLabel(std::move(label)) {
     if (!grid) throw Error(mLabel, "no grid");
+    const openvdb::math::MapBase& map = *grid->transform().baseMap();
+    const bool frustum = map.isType<openvdb::math::NonlinearFrustumMap>();
+    if (!frustum && !map.isLinear())
+        throw Error(mLabel, "has a non-linear transform of type " + map.type() + "; vdbsurf samples linear and frustum transforms");
     double background = 0;
     if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) {
-        mImpl = std::make_unique<TypedGrid<openvdb::FloatGrid>>(f, mLabel);
+        if (!frustum) mImpl = std::make_unique<TypedGrid<openvdb::FloatGrid>>(f, mLabel);
         background = double(f->background());
     } else if (auto d = openvdb::GridBase::constGrid<openvdb::DoubleGrid>(grid)) {
-        mImpl = std::make_unique<TypedGrid<openvdb::DoubleGrid>>(d, mLabel);
+        if (!frustum) mImpl = std::make_unique<TypedGrid<openvdb::DoubleGrid>>(d, mLabel);
         background = d->background();
     } else {
         throw Error(mLabel, "holds " + grid->valueType() + " values; vdbsurf meshes float or double grids");
@@ -761,7 +739,17 @@ GridField::GridField(GridBaseCPtr grid, std::string label, std::optional<Inside>
         mInside = *inside;
         mInsideReason = *inside == Inside::Below ? "inside below the iso value (--inside below)" : "inside above the iso value (--inside above)";
     }
-    if (!mImpl->axisAligned()) {
+    if (frustum) {
+        // Meshed in index space scaled by its smallest voxel, as volumeToMesh meshes it in index
+        // space: the lattice at that spacing is its voxels. The mesh then goes through the
+        // frustum point by point.
+        const double s = smallestFrustumVoxel(*grid);
+        auto own = std::make_unique<OwnFrame>();
+        auto framed = std::make_shared<GridField>(grid->copyGridReplacingTransform(voxelTransform(s, mLabel)), mLabel, mInside);
+        own->field = framed;
+        mImpl = makeFrustumGrid(grid, std::move(framed), s, mLabel, own->curved);
+        mOwnFrame = std::move(own);
+    } else if (!mImpl->axisAligned()) {
         // The same tree under a uniform scale: frame point p is index point p / s.
         const double s = mImpl->voxelSize();
         const GridBaseCPtr framed = grid->copyGridReplacingTransform(voxelTransform(s, mLabel));

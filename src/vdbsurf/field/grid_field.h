@@ -1,5 +1,5 @@
 // GridField: an OpenVDB float or double grid as a Field, sampled trilinearly in world space
-// through the grid's transform (any linear map). Bounds over a box come from per-node min/max
+// through the grid's transform (any linear map, or a camera frustum's: frustum_grid.cpp). Bounds over a box come from per-node min/max
 // of every stored value (active, inactive, tiles, background), so they are exact for the
 // trilinear interpolant's support and cost O(tree depth) per query.
 #pragma once
@@ -29,9 +29,9 @@ public:
     std::string describe() const override { return mLabel; }
     std::optional<double> naturalSpacing() const override;
     LatticeFrame naturalFrame(double h) const override;
-    // Where the grid's axes are not world's (rotated, mirrored, sheared or unequal voxels): the
-    // grid in index space scaled by its smallest voxel size, so that a lattice at that spacing
-    // is its voxels, and the map back to world.
+    // Where the grid's axes are not world's (rotated, mirrored, sheared or unequal voxels, or a
+    // frustum): the grid in index space scaled by its smallest voxel size, so that a lattice at
+    // that spacing is its voxels, and the map back to world.
     const OwnFrame* ownFrame() const override { return mOwnFrame.get(); }
     void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
                      double* out) const override;

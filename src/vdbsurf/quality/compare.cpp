@@ -66,7 +66,7 @@ CompareReport compareMeshers(const GridField& field, const CompareRequest& reque
 
     const bool ownLattice = !request.voxelSize;
     PeerMesh peer = volumeToMeshPeer(field.grid(), report.iso, ownLattice ? nullptr : &mcReport.frame,
-                                     mcReport.frameToWorld ? &*mcReport.frameToWorld : nullptr);
+                                     mcReport.ownFrame);
     report.resampled = peer.resampled;
     if (request.cancel) request.cancel->check();
 

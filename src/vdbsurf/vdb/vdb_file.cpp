@@ -134,6 +134,7 @@ std::vector<GridSummary> summarizeVdbFile(const std::string& path, bool verify) 
         s.gridClass = className(meta->getGridClass());
         const openvdb::Vec3d vs = meta->voxelSize();
         s.voxelSize = {vs.x(), vs.y(), vs.z()};
+        s.frustum = !meta->transform().isLinear();
         s.scalar = isScalarType(*meta);
         // Writers record voxel count and bounds as grid metadata; read the grid only when absent.
         openvdb::Int64 count = 0;

@@ -20,6 +20,7 @@ struct GridSummary {
     bool empty = true;      // no active voxels
     Box3 worldBounds;       // of the active voxels; meaningless when empty
     bool scalar = false;    // float or double: meshable
+    bool frustum = false;   // a camera frustum's transform: voxelSize is at its near plane's centre
 };
 
 void initializeOpenVdb();

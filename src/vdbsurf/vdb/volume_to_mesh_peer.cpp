@@ -34,10 +34,10 @@ bool sameLattice(const openvdb::math::Transform& a, const openvdb::math::Transfo
 }
 
 template <typename GridT>
-PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame, const AffineMap* frameToWorld) {
+PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame, const OwnFrame* own) {
     PeerMesh out;
     typename GridT::ConstPtr grid = openvdb::ConstPtrCast<const GridT>(input.copy());
-    const auto xform = frame ? latticeTransform(*frame, frameToWorld, "--voxel-size") : nullptr;
+    const auto xform = frame ? latticeTransform(*frame, own, "--voxel-size") : nullptr;
     if (xform && !sameLattice(input.transform(), *xform)) {
         const auto t0 = Clock::now();
         auto target = GridT::create(input.background());
@@ -67,9 +67,9 @@ PeerMesh run(const GridT& input, double iso, const LatticeFrame* frame, const Af
 
 } // namespace
 
-PeerMesh volumeToMeshPeer(const GridBaseCPtr& grid, double iso, const LatticeFrame* frame, const AffineMap* frameToWorld) {
-    if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) return run(*f, iso, frame, frameToWorld);
-    if (auto d = openvdb::GridBase::constGrid<openvdb::DoubleGrid>(grid)) return run(*d, iso, frame, frameToWorld);
+PeerMesh volumeToMeshPeer(const GridBaseCPtr& grid, double iso, const LatticeFrame* frame, const OwnFrame* own) {
+    if (auto f = openvdb::GridBase::constGrid<openvdb::FloatGrid>(grid)) return run(*f, iso, frame, own);
+    if (auto d = openvdb::GridBase::constGrid<openvdb::DoubleGrid>(grid)) return run(*d, iso, frame, own);
     throw Error(grid ? grid->getName() : "grid", "volumeToMesh needs a float or double grid");
 }
 

@@ -3,8 +3,8 @@
 // is asked for, the grid is first resampled onto that lattice with tools::resampleToMatch (level
 // sets are rebuilt, as vdb_tool's -resample does), so both meshers see nodes at the same places.
 #pragma once
-#include "vdbsurf/core/affine_map.h"
 #include "vdbsurf/core/lattice_frame.h"
+#include "vdbsurf/field/field.h"
 #include "vdbsurf/mesh/mesh.h"
 #include "vdbsurf/vdb/openvdb_fwd.h"
 
@@ -17,9 +17,9 @@ struct PeerMesh {
     double secondsMesh = 0;     // volumeToMesh itself
 };
 
-// frame: the lattice to mesh on (node (i,j,k) at origin + h (i,j,k), mapped to world by
-// frameToWorld where not null: a lattice in a rotated grid's own frame); null: the grid's own
+// frame: the lattice to mesh on (node (i,j,k) at origin + h (i,j,k), mapped to world by `own`
+// where not null: a lattice in a rotated or frustum grid's own frame); null: the grid's own
 // voxels. Throws Error when the grid is not a float or double grid.
-PeerMesh volumeToMeshPeer(const GridBaseCPtr& grid, double iso, const LatticeFrame* frame, const AffineMap* frameToWorld = nullptr);
+PeerMesh volumeToMeshPeer(const GridBaseCPtr& grid, double iso, const LatticeFrame* frame, const OwnFrame* own = nullptr);
 
 } // namespace vdbsurf

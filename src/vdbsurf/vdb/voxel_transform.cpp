@@ -26,13 +26,15 @@ std::shared_ptr<openvdb::math::Transform> voxelTransform(double voxelSize, const
     return openvdb::math::Transform::createLinearTransform(voxelSize);
 }
 
-std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const AffineMap* toWorld, const std::string& what) {
-    if (!toWorld) {
+std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const OwnFrame* own, const std::string& what) {
+    if (!own) {
         auto xform = voxelTransform(frame.h, what);
         xform->postTranslate(openvdb::Vec3d(frame.origin.x, frame.origin.y, frame.origin.z));
         return xform;
     }
     checkVoxelSize(frame.h, what); // the lattice's own spacing must be storable
+    if (own->curved) return own->curved->latticeTransform(frame, what);
+    const AffineMap* toWorld = &own->toWorld;
     const double det = toWorld->determinant() * frame.h * frame.h * frame.h;
     if (!(std::fabs(det) >= kSmallestDeterminant) || !std::isfinite(det))
         throw Error(what, "the lattice's voxels (volume " + messageNumber(std::fabs(det)) + ") cannot be stored in a .vdb grid");

@@ -2,8 +2,8 @@
 // determinant is below 3e-15 (voxels under about 1.44e-5 world units) with an ArithmeticError
 // that names nothing; this refuses it first, saying which voxel size and why.
 #pragma once
-#include "vdbsurf/core/affine_map.h"
 #include "vdbsurf/core/lattice_frame.h"
+#include "vdbsurf/field/field.h"
 #include "vdbsurf/vdb/openvdb_fwd.h"
 
 #include <memory>
@@ -16,8 +16,9 @@ namespace vdbsurf {
 std::shared_ptr<openvdb::math::Transform> voxelTransform(double voxelSize, const std::string& what);
 
 // The transform whose voxel (i, j, k) is the lattice node `frame` puts at (i, j, k), mapped to
-// world by `toWorld` where not null (a lattice in a field's own frame, a rotated grid's, as world
-// sees it). Throws Error naming `what` when OpenVDB cannot store it (voxels too small).
-std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const AffineMap* toWorld, const std::string& what);
+// world by `own` where not null (a lattice in a field's own frame — a rotated grid's, a frustum
+// grid's — as world sees it). Throws Error naming `what` when OpenVDB cannot store it (voxels too
+// small).
+std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const OwnFrame* own, const std::string& what);
 
 } // namespace vdbsurf
