@@ -4,6 +4,7 @@
 #include "support/test_support.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/threads.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/grid_field.h"
@@ -367,13 +368,18 @@ TEST_CASE("a frustum grid's sphere comes out closed, facing out and on the spher
         const double farVoxel = c.xform->voxelSize(openvdb::Vec3d(20, 20, 20)).length();
         for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
             INFO(methodName(method));
-            MeshReport rep;
+            MeshReport rep, rep1;
             const Mesh m = meshGrid(field, method, 0, rep);
             CHECK(checkTopology(m).closedManifoldOriented());
             CHECK(signedVolume(m) > 0);
             double worst = 0;
             for (const Vec3f& p : m.points) worst = std::max(worst, std::fabs(length(Vec3d(p) - s.centre) - s.radius));
             CHECK(worst < 0.05 * farVoxel);
+            ThreadLimit one(1);
+            const Mesh m1 = meshGrid(field, method, 0, rep1);
+            CHECK(m1.offsets == m.offsets);
+            CHECK(m1.indices == m.indices);
+            CHECK(std::equal(m1.points.begin(), m1.points.end(), m.points.begin(), m.points.end()));
         }
         CompareRequest req;
         const CompareReport own = compareMeshers(field, req);
@@ -421,5 +427,28 @@ TEST_CASE("a frustum grid whose data reaches behind its camera is refused, namin
         INFO(what);
         CHECK(what.find("cam.vdb:density") != std::string::npos);
         CHECK(what.find("apex") != std::string::npos);
+    }
+}
+
+TEST_CASE("a frustum whose near voxels are smaller than OpenVDB stores is meshed on its voxels all the same") {
+    // A near plane close to the camera: its voxels 8e-6 wide, below the 1.44e-5 a linear
+    // transform may have, which the frame (index space scaled by the smallest voxel) needs.
+    initializeOpenVdb();
+    auto xf = openvdb::math::Transform::createFrustumTransform(openvdb::BBoxd(openvdb::Vec3d(-20), openvdb::Vec3d(20)), 0.5, 1.2, 40 * 8e-6);
+    REQUIRE(xf->voxelSize(openvdb::Vec3d(0, 0, -20)).x() < smallestStorableVoxelSize());
+    const FrustumSphere s = frustumSphere(xf);
+    const GridField field(s.grid, "near.vdb");
+    CHECK(*field.naturalSpacing() == smallestStorableVoxelSize());
+    const double farVoxel = xf->voxelSize(openvdb::Vec3d(20, 20, 20)).length();
+    for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
+        INFO(methodName(method));
+        MeshReport rep;
+        const Mesh m = meshGrid(field, method, 0, rep);
+        CHECK(rep.voxelSizeReason.find("below what OpenVDB stores") != std::string::npos);
+        CHECK(checkTopology(m).closedManifoldOriented());
+        CHECK(signedVolume(m) > 0);
+        double worst = 0;
+        for (const Vec3f& p : m.points) worst = std::max(worst, std::fabs(length(Vec3d(p) - s.centre) - s.radius));
+        CHECK(worst < 0.05 * farVoxel);
     }
 }

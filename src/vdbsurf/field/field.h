@@ -77,6 +77,8 @@ public:
     // The OpenVDB transform whose voxel (i, j, k) is apply(frame.nodeWorld(i, j, k)). Throws Error
     // naming `what` when OpenVDB cannot store it.
     virtual std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const std::string& what) const = 0;
+    // How a lattice spacing in this frame is measured, for messages.
+    virtual std::string spacingNote() const = 0;
 };
 
 struct OwnFrame {

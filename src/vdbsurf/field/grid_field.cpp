@@ -743,7 +743,7 @@ GridField::GridField(GridBaseCPtr grid, std::string label, std::optional<Inside>
         // Meshed in index space scaled by its smallest voxel, as volumeToMesh meshes it in index
         // space: the lattice at that spacing is its voxels. The mesh then goes through the
         // frustum point by point.
-        const double s = smallestFrustumVoxel(*grid);
+        const double s = frustumFrameVoxel(*grid);
         auto own = std::make_unique<OwnFrame>();
         auto framed = std::make_shared<GridField>(grid->copyGridReplacingTransform(voxelTransform(s, mLabel)), mLabel, mInside);
         own->field = framed;

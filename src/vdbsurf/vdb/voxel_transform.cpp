@@ -14,12 +14,14 @@ namespace {
 const double kSmallestDeterminant = 3.0 * openvdb::math::Tolerance<double>::value();
 
 void checkVoxelSize(double voxelSize, const std::string& what) {
-    const double smallest = std::cbrt(kSmallestDeterminant);
+    const double smallest = smallestStorableVoxelSize();
     if (!(voxelSize >= smallest) || !std::isfinite(voxelSize))
         throw Error(what, "a voxel size of " + messageNumber(voxelSize) + " cannot be stored in a .vdb grid (OpenVDB needs at least " +
                               messageNumber(smallest) + " world units); scale the input up or use a larger voxel size");
 }
 } // namespace
+
+double smallestStorableVoxelSize() { return std::cbrt(kSmallestDeterminant); }
 
 std::shared_ptr<openvdb::math::Transform> voxelTransform(double voxelSize, const std::string& what) {
     checkVoxelSize(voxelSize, what);

@@ -11,6 +11,9 @@
 
 namespace vdbsurf {
 
+// The smallest uniform voxel size OpenVDB stores (about 1.44e-5).
+double smallestStorableVoxelSize();
+
 // Throws Error naming `what` (the option or input the voxel size came from) when a .vdb grid
 // cannot have voxels of this size.
 std::shared_ptr<openvdb::math::Transform> voxelTransform(double voxelSize, const std::string& what);
