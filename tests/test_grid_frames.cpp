@@ -17,6 +17,7 @@
 
 #include <catch2/catch.hpp>
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/SignedFloodFill.h>
 
 #include <algorithm>
 #include <cmath>
@@ -430,25 +431,46 @@ TEST_CASE("a frustum grid whose data reaches behind its camera is refused, namin
     }
 }
 
-TEST_CASE("a frustum whose near voxels are smaller than OpenVDB stores is meshed on its voxels all the same") {
-    // A near plane close to the camera: its voxels 8e-6 wide, below the 1.44e-5 a linear
-    // transform may have, which the frame (index space scaled by the smallest voxel) needs.
+TEST_CASE("a frustum or stretched grid whose smallest voxels are below what OpenVDB stores is meshed on its voxels all the same") {
+    // The frame (index space scaled by the smallest voxel) needs a linear transform OpenVDB stores,
+    // 1.44e-5 a side at least; a near plane close to the camera has voxels 8e-6 wide, a scan
+    // 1e-5 x 1e-5 x 1e-4 (which OpenVDB stores: its determinant is what it checks).
     initializeOpenVdb();
     auto xf = openvdb::math::Transform::createFrustumTransform(openvdb::BBoxd(openvdb::Vec3d(-20), openvdb::Vec3d(20)), 0.5, 1.2, 40 * 8e-6);
     REQUIRE(xf->voxelSize(openvdb::Vec3d(0, 0, -20)).x() < smallestStorableVoxelSize());
-    const FrustumSphere s = frustumSphere(xf);
-    const GridField field(s.grid, "near.vdb");
-    CHECK(*field.naturalSpacing() == smallestStorableVoxelSize());
-    const double farVoxel = xf->voxelSize(openvdb::Vec3d(20, 20, 20)).length();
-    for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
-        INFO(methodName(method));
-        MeshReport rep;
-        const Mesh m = meshGrid(field, method, 0, rep);
-        CHECK(rep.voxelSizeReason.find("below what OpenVDB stores") != std::string::npos);
-        CHECK(checkTopology(m).closedManifoldOriented());
-        CHECK(signedVolume(m) > 0);
-        double worst = 0;
-        for (const Vec3f& p : m.points) worst = std::max(worst, std::fabs(length(Vec3d(p) - s.centre) - s.radius));
-        CHECK(worst < 0.05 * farVoxel);
+    const FrustumSphere fs = frustumSphere(xf);
+    openvdb::Mat4d scan = openvdb::Mat4d::identity();
+    scan.preScale(openvdb::Vec3d(1e-5, 1e-5, 1e-4));
+    FrustumSphere ss;
+    ss.radius = 4e-4;
+    ss.grid = openvdb::FloatGrid::create(float(3e-4));
+    ss.grid->setTransform(openvdb::math::Transform::createLinearTransform(scan));
+    ss.grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    {
+        auto acc = ss.grid->getAccessor();
+        for (int i = -50; i <= 50; ++i)
+            for (int j = -50; j <= 50; ++j)
+                for (int k = -6; k <= 6; ++k) {
+                    const double d = length(Vec3d(i * 1e-5, j * 1e-5, k * 1e-4)) - ss.radius;
+                    if (std::fabs(d) < 3e-4) acc.setValue(openvdb::Coord(i, j, k), float(d));
+                }
+        openvdb::tools::signedFloodFill(ss.grid->tree());
+    }
+    for (const auto& [s, largestVoxel] : {std::make_pair(fs, xf->voxelSize(openvdb::Vec3d(20, 20, 20)).length()), std::make_pair(ss, 1e-4)}) {
+        const bool frustum = !s.grid->transform().isLinear();
+        INFO((frustum ? "frustum" : "scan"));
+        const GridField field(s.grid, "near.vdb");
+        CHECK(*field.naturalSpacing() == smallestStorableVoxelSize());
+        for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
+            INFO(methodName(method));
+            MeshReport rep;
+            const Mesh m = meshGrid(field, method, 0, rep);
+            CHECK(rep.voxelSizeReason.find("below what OpenVDB stores") != std::string::npos);
+            CHECK(checkTopology(m).closedManifoldOriented());
+            CHECK(signedVolume(m) > 0);
+            double worst = 0;
+            for (const Vec3f& p : m.points) worst = std::max(worst, std::fabs(length(Vec3d(p) - s.centre) - s.radius));
+            CHECK(worst < 0.05 * largestVoxel);
+        }
     }
 }

@@ -55,7 +55,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
             };
         Mesh mesh = meshField(*own->field, inFrame, report);
         report.ownFrame = own;
-        if (own->curved) report.voxelSizeReason += "; " + own->curved->spacingNote();
+        if (!own->spacingNote.empty()) report.voxelSizeReason += "; " + own->spacingNote;
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, mesh.points.size(), 4096), [&](const auto& r) {
             for (std::size_t i = r.begin(); i != r.end(); ++i) mesh.points[i] = Vec3f(own->apply(Vec3d(mesh.points[i])));
         });

@@ -77,14 +77,15 @@ public:
     // The OpenVDB transform whose voxel (i, j, k) is apply(frame.nodeWorld(i, j, k)). Throws Error
     // naming `what` when OpenVDB cannot store it.
     virtual std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const std::string& what) const = 0;
-    // How a lattice spacing in this frame is measured, for messages.
-    virtual std::string spacingNote() const = 0;
 };
 
 struct OwnFrame {
     std::shared_ptr<const Field> field;            // the same values, in frame coordinates
     AffineMap toWorld;                             // frame coordinates -> world, where `curved` is null
     std::shared_ptr<const CurvedFrameMap> curved;  // the map, where it is not affine
+    // How a lattice spacing in this frame is measured, where a user would not guess it (a
+    // frustum's voxels widen; voxels below what OpenVDB stores count in that size), for messages.
+    std::string spacingNote;
 
     Vec3d apply(const Vec3d& p) const { return curved ? curved->apply(p) : toWorld.apply(p); }
     bool mirrors() const { return curved ? curved->mirrors() : toWorld.mirrors(); }

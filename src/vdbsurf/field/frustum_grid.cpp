@@ -34,29 +34,15 @@ openvdb::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
 // than the near plane's, or none.
 constexpr double kSmallestDepthFactor = 1e-6;
 
-// The smallest side of the frustum's voxels: at a corner of its index box, where it is narrowest.
-double smallestFrustumVoxel(const NonlinearFrustumMap& map) {
-    const openvdb::BBoxd& box = map.getBBox();
-    double smallest = std::numeric_limits<double>::infinity();
-    for (int c = 0; c < 8; ++c) {
-        const openvdb::Vec3d loc((c & 1) ? box.max().x() : box.min().x(), (c & 2) ? box.max().y() : box.min().y(),
-                                 (c & 4) ? box.max().z() : box.min().z());
-        const openvdb::Vec3d v = map.voxelSize(loc);
-        smallest = std::min({smallest, v.x(), v.y(), v.z()});
-    }
-    return smallest;
-}
-
 // The frustum and its frame: frame point q is index point q / frameVoxel.
 class Frustum {
 public:
     Frustum(const NonlinearFrustumMap& map, double frameVoxel)
-        : mMap(map), mS(frameVoxel), mSmallest(smallestFrustumVoxel(map)), mGamma((1.0 / map.getTaper() - 1.0) / map.getDepth()),
+        : mMap(map), mS(frameVoxel), mGamma((1.0 / map.getTaper() - 1.0) / map.getDepth()),
           mDepthOnLz(map.getDepth() / map.getBBox().extents().z()) {}
 
     const NonlinearFrustumMap& map() const { return mMap; }
     double frameVoxel() const { return mS; }
-    double smallestVoxel() const { return mSmallest; }
 
     // (γ z' + 1) for index depth z: positive in front of the apex, 1 at the index box's near face.
     double depthFactorAtIndexZ(double z) const { return mGamma * (z - mMap.getBBox().min().z()) * mDepthOnLz + 1.0; }
@@ -78,7 +64,7 @@ public:
 
 private:
     NonlinearFrustumMap mMap;
-    double mS, mSmallest, mGamma, mDepthOnLz;
+    double mS, mGamma, mDepthOnLz;
 };
 
 class FrustumFrameMap final : public CurvedFrameMap {
@@ -91,14 +77,6 @@ public:
 
     // Lattice node i is at index point a + b i (a = origin / s, b = h / s); a frustum whose
     // index box is the grid's, moved and scaled the same way, puts it where this map does.
-    std::string spacingNote() const override {
-        const double smallest = mF.smallestVoxel();
-        if (smallest >= mF.frameVoxel())
-            return "a frustum grid: measured where its voxels are smallest, the lattice widens with them";
-        return "a frustum grid whose smallest voxels (" + messageNumber(smallest) + ") are below what OpenVDB stores: a spacing H is H / " +
-               messageNumber(mF.frameVoxel()) + " of its voxels, the lattice widens with them";
-    }
-
     std::shared_ptr<openvdb::math::Transform> latticeTransform(const LatticeFrame& frame, const std::string& what) const override {
         const double b = frame.h / mF.frameVoxel();
         const openvdb::Vec3d a = toVdb(frame.origin / mF.frameVoxel());
@@ -212,9 +190,19 @@ private:
 
 } // namespace
 
-double frustumFrameVoxel(const openvdb::GridBase& grid) {
-    return std::max(smallestFrustumVoxel(*grid.transform().constMap<NonlinearFrustumMap>()), smallestStorableVoxelSize());
+double smallestFrustumVoxel(const openvdb::GridBase& grid) {
+    const NonlinearFrustumMap& map = *grid.transform().constMap<NonlinearFrustumMap>();
+    const openvdb::BBoxd& box = map.getBBox();
+    double smallest = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 8; ++c) {
+        const openvdb::Vec3d loc((c & 1) ? box.max().x() : box.min().x(), (c & 2) ? box.max().y() : box.min().y(),
+                                 (c & 4) ? box.max().z() : box.min().z());
+        const openvdb::Vec3d v = map.voxelSize(loc);
+        smallest = std::min({smallest, v.x(), v.y(), v.z()});
+    }
+    return smallest;
 }
+
 
 std::unique_ptr<GridField::Impl> makeFrustumGrid(GridBaseCPtr grid, std::shared_ptr<const GridField> frame, double frameVoxel,
                                                  const std::string& label, std::shared_ptr<const CurvedFrameMap>& curved) {

@@ -739,27 +739,31 @@ GridField::GridField(GridBaseCPtr grid, std::string label, std::optional<Inside>
         mInside = *inside;
         mInsideReason = *inside == Inside::Below ? "inside below the iso value (--inside below)" : "inside above the iso value (--inside above)";
     }
-    if (frustum) {
-        // Meshed in index space scaled by its smallest voxel, as volumeToMesh meshes it in index
-        // space: the lattice at that spacing is its voxels. The mesh then goes through the
-        // frustum point by point.
-        const double s = frustumFrameVoxel(*grid);
+    if (frustum || !mImpl->axisAligned()) {
+        // Meshed in its own frame: its index space under a uniform scale s (frame point p is index
+        // point p / s), s its smallest voxel size, so that a lattice at that spacing is its voxels
+        // (as volumeToMesh meshes in index space); the mesh then goes to world, through a frustum
+        // point by point. The frame's transform must be one OpenVDB stores: voxels smaller than
+        // that count in the smallest it stores.
+        const double smallest = frustum ? smallestFrustumVoxel(*grid) : mImpl->voxelSize();
+        const double s = std::max(smallest, smallestStorableVoxelSize());
         auto own = std::make_unique<OwnFrame>();
         auto framed = std::make_shared<GridField>(grid->copyGridReplacingTransform(voxelTransform(s, mLabel)), mLabel, mInside);
         own->field = framed;
-        mImpl = makeFrustumGrid(grid, std::move(framed), s, mLabel, own->curved);
-        mOwnFrame = std::move(own);
-    } else if (!mImpl->axisAligned()) {
-        // The same tree under a uniform scale: frame point p is index point p / s.
-        const double s = mImpl->voxelSize();
-        const GridBaseCPtr framed = grid->copyGridReplacingTransform(voxelTransform(s, mLabel));
-        const openvdb::Mat4d m = grid->transform().baseMap()->getAffineMap()->getConstMat4();
-        auto own = std::make_unique<OwnFrame>();
-        own->field = std::make_shared<GridField>(framed, mLabel, mInside);
-        // OpenVDB's matrices act on row vectors: world = index * m.
-        for (int r = 0; r < 3; ++r)
-            for (int c = 0; c < 3; ++c) own->toWorld.a[r][c] = m(c, r) / s;
-        own->toWorld.t = Vec3d(m(3, 0), m(3, 1), m(3, 2));
+        if (frustum) {
+            mImpl = makeFrustumGrid(grid, std::move(framed), s, mLabel, own->curved);
+            own->spacingNote = "a frustum grid: measured where its voxels are smallest, the lattice widens with them";
+        } else {
+            const openvdb::Mat4d m = grid->transform().baseMap()->getAffineMap()->getConstMat4();
+            // OpenVDB's matrices act on row vectors: world = index * m.
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c) own->toWorld.a[r][c] = m(c, r) / s;
+            own->toWorld.t = Vec3d(m(3, 0), m(3, 1), m(3, 2));
+        }
+        if (s > smallest)
+            own->spacingNote = std::string(frustum ? "a frustum grid whose" : "the grid's") + " smallest voxels (" + messageNumber(smallest) +
+                               ") are below what OpenVDB stores: a spacing H is H / " + messageNumber(s) + " of its voxels" +
+                               (frustum ? ", the lattice widens with them" : "");
         mOwnFrame = std::move(own);
     }
 }
@@ -773,7 +777,10 @@ Interval GridField::bounds(const Box3& box) const { return mImpl->bounds(box); }
 bool GridField::mayStraddle(const Box3& box, double iso) const { return mImpl->mayStraddle(box, iso); }
 void GridField::values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const { mImpl->values(box, points, n, out); }
 Box3 GridField::domain() const { return mImpl->domain(); }
-std::optional<double> GridField::naturalSpacing() const { return mImpl->voxelSize(); }
+std::optional<double> GridField::naturalSpacing() const {
+    // Where the grid has its own frame, a spacing counts in the frame's units.
+    return mOwnFrame ? mOwnFrame->field->naturalSpacing() : std::optional<double>(mImpl->voxelSize());
+}
 LatticeFrame GridField::naturalFrame(double h) const { return mImpl->naturalFrame(h); }
 Interval GridField::valueRange() const { return mImpl->valueRange(); }
 GridBaseCPtr GridField::grid() const { return mImpl->grid(); }

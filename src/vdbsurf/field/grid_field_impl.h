@@ -41,9 +41,8 @@ struct GridField::Impl {
 std::unique_ptr<GridField::Impl> makeFrustumGrid(GridBaseCPtr grid, std::shared_ptr<const GridField> frame, double frameVoxel,
                                                  const std::string& label, std::shared_ptr<const CurvedFrameMap>& curved);
 
-// The voxel size of a frustum grid's frame: the smallest side of its voxels over its frustum (at a
-// corner of its index box, where the frustum is narrowest), or OpenVDB's smallest storable voxel
-// size where the frustum's are smaller (a near plane close to the camera).
-double frustumFrameVoxel(const openvdb::GridBase& grid);
+// The smallest side of a frustum grid's voxels over its frustum (at a corner of its index box,
+// where the frustum is narrowest).
+double smallestFrustumVoxel(const openvdb::GridBase& grid);
 
 } // namespace vdbsurf
