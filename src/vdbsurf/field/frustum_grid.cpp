@@ -1,9 +1,10 @@
 // A frustum grid as GridField sees it in world space. Its voxels are the cells of a camera's
 // frustum: index space goes to world through a perspective map (OpenVDB's NonlinearFrustumMap),
 // which no lattice in world follows. GridField meshes it in its own frame (the tree in index
-// space, scaled by the smallest voxel) and maps the mesh through the frustum; this file answers
-// the world-space questions — values and gradients where `compare` measures a mesh, bounds over
-// world boxes — through that frame, and holds the map itself (CurvedFrameMap).
+// space, scaled by its smallest voxel or the smallest OpenVDB stores) and maps the mesh through
+// the frustum; this file answers the world-space questions — values and gradients where
+// `compare` measures a mesh, bounds over world boxes — through that frame, and holds the map
+// itself (CurvedFrameMap).
 //
 // The map's inverse is projective (x and y divided by a linear function of depth), so over the
 // half-space in front of the frustum's apex it takes segments to segments and a box to a convex
@@ -202,7 +203,6 @@ double smallestFrustumVoxel(const openvdb::GridBase& grid) {
     }
     return smallest;
 }
-
 
 std::unique_ptr<GridField::Impl> makeFrustumGrid(GridBaseCPtr grid, std::shared_ptr<const GridField> frame, double frameVoxel,
                                                  const std::string& label, std::shared_ptr<const CurvedFrameMap>& curved) {
