@@ -326,6 +326,35 @@ TEST_CASE("a camera frustum's grid is listed as one, meshed on its voxels and ma
     CHECK(cmp.output.find("frustum's smallest voxels") != std::string::npos);
 }
 
+TEST_CASE("Ctrl-C stops every long command: exit 130, one message, no output file") {
+    // SIGINT half a second in (as a terminal's Ctrl-C or a farm's SIGTERM would come); each job
+    // below runs for seconds to a minute here. patches ran on and wrote its files.
+    test::TempDir dir;
+    const std::string spot = test::sharedData("mesh/spot.obj");
+    const std::string out = dir.path("out");
+    std::vector<std::vector<std::string>> jobs{
+        {"mesh", "--expr", "x^2+y^2+z^2-1", "--bbox", "-1.1,-1.1,-1.1,1.1,1.1,1.1", "--voxel-size", "0.002", "-o", out + ".ply"},
+        {"rasterize", std::string(VDBSURF_SOURCE_DIR) + "/examples/scenes/blobby.json", "--voxel-size", "0.003", "-o", out + ".vdb"}};
+    if (spot.empty()) {
+        WARN("shared data absent (mesh/spot.obj): subdivide and patches are not interrupted");
+    } else {
+        jobs.push_back({"subdivide", spot, "--levels", "6", "-o", out + ".ply"});
+        jobs.push_back({"subdivide", spot, "--camera-pos", "0,0,4", "--camera-target", "0,0,0", "--front-depth", "12",
+                        "--silhouette-depth", "12", "--stop-pixels", "0", "-o", out + ".ply"});
+        jobs.push_back({"patches", spot, "--grid-size", "2048,2048", "-o", out + ".obj", "--preview", out + "_preview.ply"});
+    }
+    for (const auto& job : jobs) {
+        // (killed 20 s later, exit 137, should the signal go unheeded)
+        std::vector<std::string> args{"timeout", "--preserve-status", "-s", "INT", "-k", "20", "0.5", VDBSURF_BIN};
+        args.insert(args.end(), job.begin(), job.end());
+        const auto r = test::runProgram(args);
+        INFO(job[0] << ": " << r.output);
+        CHECK(r.exitCode == 130);
+        CHECK(r.output.find("vdbsurf: cancelled; no output written") != std::string::npos);
+        CHECK(dir.files().empty());
+    }
+}
+
 TEST_CASE("bad input: one clear error naming the input, non-zero exit, no output") {
     test::TempDir dir;
     writeSphereFile(dir.path("good.vdb"));

@@ -3,6 +3,7 @@
 #include "cli_common.h"
 
 #include "vdbsurf/core/atomic_file.h"
+#include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/threads.h"
 #include "vdbsurf/mesh/mesh_io.h"
@@ -61,7 +62,9 @@ void runPatches(const PatchesOptions& o) {
     ThreadLimit threads(o.threads);
 
     const Mesh input = readMesh(o.input);
+    job.cancel = &processCancelToken();
     const reeb::PatchResult r = reeb::makePatches(input, o.input, job);
+    processCancelToken().check(); // (once the outputs are being written, they are all written)
     const reeb::ReebGraph& g = r.graph;
     const std::vector<std::string> comments{std::string("vdbsurf ") + VDBSURF_VERSION, "source: " + o.input,
                                             "patches: " + std::to_string(g.units.size()) + " bicubic B-spline patches along axis " +

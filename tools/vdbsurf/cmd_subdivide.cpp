@@ -4,6 +4,7 @@
 
 #include "vdbsurf/core/atomic_file.h"
 #include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/progress.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/threads.h"
 #include "vdbsurf/mesh/mesh_io.h"
@@ -88,6 +89,7 @@ void runSubdivide(const SubdivideOptions& o) {
         vo.frontDepth = o.frontDepth;
         vo.silhouetteDepth = o.silhouetteDepth;
         vo.stopPixels = o.stopPixels;
+        vo.cancel = &processCancelToken();
         out = subdivideForView(input, *camera, vo, o.input, &view);
         how = "view-dependent: front depth " + std::to_string(o.frontDepth) + ", silhouette depth " + std::to_string(o.silhouetteDepth) +
               " sqrt2 steps";
@@ -101,9 +103,11 @@ void runSubdivide(const SubdivideOptions& o) {
         Sqrt2Subdivider s(input, o.input);
         splitVertices = s.splitVertices();
         s.checkUniformSteps(steps);
+        Progress progress("sqrt2 steps", std::uint64_t(steps), &processCancelToken());
         for (int i = 0; i < steps; ++i) {
-            s.step();
             processCancelToken().check();
+            s.step();
+            progress.advance(); // (checks the token too)
         }
         out = s.mesh();
         how = "uniform: " + std::to_string(steps) + " sqrt2 steps" + (steps % 2 == 0 ? " (" + std::to_string(steps / 2) + " Catmull-Clark levels)" : "");

@@ -3,6 +3,7 @@
 #include "vdbsurf/core/cancel.h"
 
 #include <cstdio>
+#include <exception>
 #include <unistd.h>
 
 namespace vdbsurf {
@@ -20,7 +21,8 @@ Progress::Progress(std::string stage, std::uint64_t total, const CancelToken* ca
 }
 
 Progress::~Progress() {
-    if (mEnabled && mNextPrintNs.load() < 0) print(true); // only finish a line we started
+    // Only finish a line we started; work cut short (cancelled, an error) ends at what it reached.
+    if (mEnabled && mNextPrintNs.load() < 0) print(std::uncaught_exceptions() == 0, true);
 }
 
 void Progress::advance(std::uint64_t units) {
@@ -32,13 +34,13 @@ void Progress::advance(std::uint64_t units) {
     const std::int64_t due = next < 0 ? -next : next;
     if (now < due) return;
     // Negative marks "a line was printed"; whoever wins the exchange prints.
-    if (mNextPrintNs.compare_exchange_strong(next, -(now + kPrintIntervalNs))) print(false);
+    if (mNextPrintNs.compare_exchange_strong(next, -(now + kPrintIntervalNs))) print(false, false);
 }
 
-void Progress::print(bool final) {
+void Progress::print(bool complete, bool endLine) {
     std::lock_guard<std::mutex> lock(mPrintMutex);
     const double frac = mTotal ? double(mDone.load()) / double(mTotal) : 1.0;
-    std::fprintf(stderr, "\r%s: %5.1f%%%s", mStage.c_str(), 100.0 * (final ? 1.0 : frac), final ? "\n" : "");
+    std::fprintf(stderr, "\r%s: %5.1f%%%s", mStage.c_str(), 100.0 * (complete ? 1.0 : frac), endLine ? "\n" : "");
     std::fflush(stderr);
 }
 

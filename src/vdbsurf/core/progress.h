@@ -24,7 +24,7 @@ public:
     static bool enabledForTerminal();
 
 private:
-    void print(bool final);
+    void print(bool complete, bool endLine);
 
     std::string mStage;
     std::uint64_t mTotal;

@@ -16,7 +16,7 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 CompareRow describe(std::string method, const Mesh& mesh, double seconds, const GridField& field, double iso,
-                    const std::vector<Vec3d>& surface, double h) {
+                    const std::vector<Vec3d>& surface, double h, const CancelToken* cancel) {
     CompareRow row;
     row.method = std::move(method);
     row.seconds = seconds;
@@ -25,7 +25,7 @@ CompareRow describe(std::string method, const Mesh& mesh, double seconds, const 
     row.triangles = mesh.fannedTriangleCount();
     row.components = countComponents(mesh);
     row.topology = checkTopology(mesh);
-    row.quality = measureSurfaceQuality(mesh, field, iso, surface, h);
+    row.quality = measureSurfaceQuality(mesh, field, iso, surface, h, cancel);
     return row;
 }
 
@@ -70,11 +70,12 @@ CompareReport compareMeshers(const GridField& field, const CompareRequest& reque
     report.resampled = peer.resampled;
     if (request.cancel) request.cancel->check();
 
-    CompareRow ref = describe("volumeToMesh", peer.mesh, peer.secondsResample + peer.secondsMesh, field, report.iso, surface, h);
+    CompareRow ref =
+        describe("volumeToMesh", peer.mesh, peer.secondsResample + peer.secondsMesh, field, report.iso, surface, h, request.cancel);
     ref.secondsResample = peer.secondsResample;
     report.rows.push_back(std::move(ref));
-    report.rows.push_back(describe("vdbsurf mc", mc, mcSeconds, field, report.iso, surface, h));
-    report.rows.push_back(describe("vdbsurf dmc", dmc, dmcSeconds, field, report.iso, surface, h));
+    report.rows.push_back(describe("vdbsurf mc", mc, mcSeconds, field, report.iso, surface, h, request.cancel));
+    report.rows.push_back(describe("vdbsurf dmc", dmc, dmcSeconds, field, report.iso, surface, h, request.cancel));
     return report;
 }
 

@@ -1,5 +1,6 @@
 #include "vdbsurf/quality/surface_quality.h"
 
+#include "vdbsurf/core/cancel.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/mesh/mesh_distance.h"
 
@@ -127,7 +128,7 @@ std::vector<Vec3d> isoSurfaceSamples(const Field& field, double iso, double h) {
 }
 
 SurfaceQuality measureSurfaceQuality(const Mesh& mesh, const Field& field, double iso,
-                                     const std::vector<Vec3d>& surfaceSamples, double h) {
+                                     const std::vector<Vec3d>& surfaceSamples, double h, const CancelToken* cancel) {
     SurfaceQuality q;
     q.h = h;
     const double cap = 2 * h;
@@ -135,12 +136,14 @@ SurfaceQuality measureSurfaceQuality(const Mesh& mesh, const Field& field, doubl
     const std::vector<Vec3d> samples = meshSamples(mesh, h);
     std::vector<double> toSurface(samples.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, samples.size(), 256), [&](const auto& r) {
+        if (cancel) cancel->check();
         for (std::size_t i = r.begin(); i != r.end(); ++i) toSurface[i] = distanceToIsoSurface(field, iso, samples[i], cap);
     });
 
     const MeshDistance meshDistance(mesh, h);
     std::vector<double> toMesh(surfaceSamples.size());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, surfaceSamples.size(), 256), [&](const auto& r) {
+        if (cancel) cancel->check();
         for (std::size_t i = r.begin(); i != r.end(); ++i) toMesh[i] = meshDistance.distance(surfaceSamples[i], h * 1.000001);
     });
 

@@ -10,6 +10,8 @@
 
 namespace vdbsurf {
 
+class CancelToken;
+
 // An upper bound on the distance from p to the field's iso surface, found by a sign change along
 // the gradient line through p (bisected) and by Newton steps; maxDistance when neither finds the
 // surface within maxDistance.
@@ -33,9 +35,9 @@ struct SurfaceQuality {
 };
 
 // Mesh samples: every vertex, every (fanned) triangle's centroid, and points at spacing about h
-// inside triangles longer than 3 h. Runs in
-// parallel; the result does not depend on the thread count.
+// inside triangles longer than 3 h. Runs in parallel; the result does not depend on the thread
+// count. Throws Cancelled once `cancel` is set.
 SurfaceQuality measureSurfaceQuality(const Mesh& mesh, const Field& field, double iso,
-                                     const std::vector<Vec3d>& surfaceSamples, double h);
+                                     const std::vector<Vec3d>& surfaceSamples, double h, const CancelToken* cancel = nullptr);
 
 } // namespace vdbsurf

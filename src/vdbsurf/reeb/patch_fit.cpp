@@ -1,5 +1,7 @@
 #include "vdbsurf/reeb/patch_fit.h"
 
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/progress.h"
 #include "vdbsurf/reeb/least_squares.h"
 
 #include <tbb/parallel_for.h>
@@ -125,11 +127,15 @@ UnitPatch fitUnit(const ReebGraph& g, const PatchSet& set, const Unit& unit, Rin
 
 std::vector<RingGrid> ringGrids(const ReebGraph& g, const PatchOptions& options) {
     std::vector<RingGrid> grids(g.units.size());
-    tbb::parallel_for(std::size_t(0), grids.size(), [&](std::size_t u) { grids[u] = ringGrid(g, g.units[u], options.gridU, options.gridV); });
+    const std::uint64_t perUnit = std::uint64_t(kSectionPasses) * std::uint64_t(options.gridV > 0 ? options.gridV : kMaxAutoV);
+    Progress progress("ring grids", perUnit * grids.size(), options.cancel);
+    tbb::parallel_for(std::size_t(0), grids.size(), [&](std::size_t u) {
+        grids[u] = ringGrid(g, g.units[u], options.gridU, options.gridV, options.cancel, &progress);
+    });
     return grids;
 }
 
-PatchSet fitPatches(const ReebGraph& g, std::vector<RingGrid> grids) {
+PatchSet fitPatches(const ReebGraph& g, std::vector<RingGrid> grids, const CancelToken* cancel) {
     PatchSet set;
     const std::size_t n = g.units.size();
     // Lobe curves with about one span per two grid points of the finer neighbouring unit.
@@ -153,7 +159,12 @@ PatchSet fitPatches(const ReebGraph& g, std::vector<RingGrid> grids) {
         set.lobeCurves[li] = fitCurve(lobe.points, params, spans + 3);
     });
     set.patches.resize(n);
-    tbb::parallel_for(std::size_t(0), n, [&](std::size_t u) { set.patches[u] = fitUnit(g, set, g.units[u], std::move(grids[u])); });
+    Progress progress("patch fit", n, cancel);
+    tbb::parallel_for(std::size_t(0), n, [&](std::size_t u) {
+        if (cancel) cancel->check();
+        set.patches[u] = fitUnit(g, set, g.units[u], std::move(grids[u]));
+        progress.advance();
+    });
     for (const UnitPatch& p : set.patches) {
         set.sectionsWithSeveralLoops += p.grid.sectionsWithSeveralLoops;
         set.sectionsBlended += p.grid.sectionsBlended;

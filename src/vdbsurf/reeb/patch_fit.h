@@ -29,6 +29,7 @@ struct UnitPatch {
 
 struct PatchOptions {
     int gridU = 0, gridV = 0; // ring grid size; 0: from each unit
+    const CancelToken* cancel = nullptr; // checked between sections and units (throws Cancelled)
 };
 
 struct PatchSet {
@@ -37,10 +38,11 @@ struct PatchSet {
     std::size_t sectionsWithSeveralLoops = 0, sectionsBlended = 0;
 };
 
-// One ring grid per unit (in unit order).
+// One ring grid per unit (in unit order). Shows progress on a terminal.
 std::vector<RingGrid> ringGrids(const ReebGraph& graph, const PatchOptions& options = {});
-// Patches over the units from their ring grids (consumed).
-PatchSet fitPatches(const ReebGraph& graph, std::vector<RingGrid> grids);
+// Patches over the units from their ring grids (consumed). Shows progress on a terminal; throws
+// Cancelled between units once `cancel` is set.
+PatchSet fitPatches(const ReebGraph& graph, std::vector<RingGrid> grids, const CancelToken* cancel = nullptr);
 
 // Largest distance between a patch's boundary row and the lobe curve it shares with the
 // neighbouring patch, over `samples` points per piece: zero up to rounding when the patches join.

@@ -1,7 +1,7 @@
 #include "vdbsurf/reeb/patch_output.h"
-
 #include "vdbsurf/core/atomic_file.h"
 #include "vdbsurf/core/buffered_file.h"
+#include "vdbsurf/core/cancel.h"
 #include "vdbsurf/mesh/mesh_distance.h"
 #include "vdbsurf/reeb/row_zip.h"
 
@@ -101,7 +101,7 @@ Mesh tessellatePatches(const ReebGraph& g, const PatchSet& set, int density) {
     return mesh;
 }
 
-FitError fitError(const ClosedSurface& s, const Mesh& tessellation) {
+FitError fitError(const ClosedSurface& s, const Mesh& tessellation, const CancelToken* cancel) {
     FitError e;
     e.meanEdgeLength = s.meanEdgeLength();
     if (!(e.meanEdgeLength > 0)) return e;
@@ -111,6 +111,7 @@ FitError fitError(const ClosedSurface& s, const Mesh& tessellation) {
     std::vector<double> d(s.points.size());
     // Near points answer within a few cells; the rare far one widens its search.
     tbb::parallel_for(std::size_t(0), s.points.size(), [&](std::size_t v) {
+        if (cancel) cancel->check();
         for (double radius = 2 * e.meanEdgeLength;; radius *= 4) {
             d[v] = distance.distance(s.points[v], std::min(radius, farthest));
             if (d[v] < radius || radius >= farthest) break;

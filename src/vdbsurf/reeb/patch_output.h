@@ -19,7 +19,7 @@ struct FitError {
     double meanEdgeLength = 0;
 };
 // Distances of the surface's vertices to the tessellated patches.
-FitError fitError(const ClosedSurface& surface, const Mesh& tessellation);
+FitError fitError(const ClosedSurface& surface, const Mesh& tessellation, const CancelToken* cancel = nullptr);
 
 // OBJ free-form surfaces: `cstype bspline`, `deg 3 3`, one `surf` per unit (control points as
 // `v`, u varying fastest), `parm u`, `parm v`, `end`. Written atomically; throws Error naming path.

@@ -18,6 +18,7 @@ struct PatchJob {
     int gridU = 0, gridV = 0; // 0: from each unit
     int previewDensity = 4;   // tessellation samples per knot span
     bool measureError = true;
+    const CancelToken* cancel = nullptr; // checked between stages and within the long ones (throws Cancelled)
 };
 
 struct PatchTimings {
@@ -37,7 +38,8 @@ struct PatchResult {
     PatchTimings seconds;
 };
 
-// Throws Error naming inputName for input the Reeb graph cannot take (open, non-manifold ...).
+// Throws Error naming inputName for input the Reeb graph cannot take (open, non-manifold ...),
+// Cancelled once job.cancel is set.
 PatchResult makePatches(const Mesh& mesh, const std::string& inputName, const PatchJob& job);
 
 } // namespace vdbsurf::reeb

@@ -1,4 +1,6 @@
 #include "vdbsurf/reeb/ring_grid.h"
+#include "vdbsurf/core/cancel.h"
+#include "vdbsurf/core/progress.h"
 #include "vdbsurf/mesh/mesh.h"
 
 #include <algorithm>
@@ -177,7 +179,9 @@ double bestOffset(const std::vector<Vec3d>& loop, const std::vector<Vec3d>& refe
 
 } // namespace
 
-RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
+RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V, const CancelToken* cancel, Progress* progress) {
+    const std::uint64_t share = std::uint64_t(kSectionPasses) * std::uint64_t(V > 0 ? V : kMaxAutoV);
+    std::uint64_t advanced = 0;
     const UnitEnd bottom = unitEnd(g, unit, false), top = unitEnd(g, unit, true);
     const Sectioner sectioner(unit, g.axis);
     const double h0 = bottom.height, h1 = top.height;
@@ -186,6 +190,7 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
     // re-ordered vertices against their heights; such rows are blended from their neighbours.
     std::size_t missing = 0;
     auto section = [&](double t) {
+        if (cancel) cancel->check();
         std::size_t loops = 0;
         std::vector<Vec3d> loop = sectioner.longestLoop(t, loops);
         several += loops > 1;
@@ -205,7 +210,7 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
         girth = n ? girth / n : std::sqrt(unit.area);
         const double spacing = std::sqrt(unit.area / std::max(1.0, double(unit.inputVertices) / 4.0));
         if (U <= 0) U = std::clamp(int(std::lround(girth / spacing)), 8, 128);
-        if (V <= 0) V = std::clamp(int(std::lround(unit.area / std::max(girth, 1e-30) / spacing)) + 1, 4, 128);
+        if (V <= 0) V = std::clamp(int(std::lround(unit.area / std::max(girth, 1e-30) / spacing)) + 1, 4, kMaxAutoV);
     }
     RingGrid grid;
     grid.U = U;
@@ -250,6 +255,7 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
                 for (int v = anchor + dir; v >= 0 && v < V; v += dir) {
                     const std::vector<Vec3d>& loop = loopsAt[std::size_t(v)];
                     if (loop.empty()) continue; // a pole (already set) or a missing section
+                    if (cancel) cancel->check();
                     const double offset = bestOffset(loop, rows[std::size_t(ref)]);
                     rows[std::size_t(v)] = resampleLoop(loop, U, offset);
                     if (v == 0) grid.bottomSeam = offset;
@@ -271,11 +277,12 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
     };
     // Even out the spacing of the sections along the surface: heights re-spaced by the mean
     // distance between consecutive rows, a few times.
-    for (int iteration = 0; iteration < 4; ++iteration) {
+    for (int iteration = 0; iteration < kSectionPasses; ++iteration) {
         several = 0;
         missing = 0;
         build();
-        if (iteration == 3 || V < 3) break;
+        if (progress) progress->advance(std::uint64_t(V)), advanced += std::uint64_t(V);
+        if (iteration == kSectionPasses - 1 || V < 3) break;
         std::vector<double> along(std::size_t(V), 0.0);
         for (int v = 1; v < V; ++v) {
             double d = 0;
@@ -298,6 +305,7 @@ RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V) {
             heights[std::size_t(v)] = std::clamp(heights[std::size_t(v)], std::max(heights[std::size_t(v - 1)], h0) + margin, h1 - margin);
         grid.heights = heights;
     }
+    if (progress) progress->advance(share - advanced);
     grid.sectionsWithSeveralLoops = several;
     grid.sectionsBlended = missing;
     grid.points.reserve(std::size_t(U) * std::size_t(V));

@@ -8,6 +8,11 @@
 
 #include <vector>
 
+namespace vdbsurf {
+class CancelToken;
+class Progress;
+} // namespace vdbsurf
+
 namespace vdbsurf::reeb {
 
 // One end of a unit: a pole (a unit holding a minimum or maximum) or a closed contour at the
@@ -34,7 +39,12 @@ struct RingGrid {
 
 // U, V <= 0 choose the size from the unit: about one grid point per four of the unit's input
 // vertices, spaced alike in both directions (U in [8, 128], V in [4, 128]).
-RingGrid ringGrid(const ReebGraph& graph, const Unit& unit, int U = 0, int V = 0);
+// The sections are cut up to kSectionPasses times (their heights re-spaced between passes);
+// `progress`, where given, advances by V a pass and by kSectionPasses * (V, or kMaxAutoV when
+// V <= 0) in all. Throws Cancelled between sections once `cancel` is set.
+constexpr int kSectionPasses = 4, kMaxAutoV = 128;
+RingGrid ringGrid(const ReebGraph& graph, const Unit& unit, int U = 0, int V = 0, const CancelToken* cancel = nullptr,
+                  Progress* progress = nullptr);
 
 // Closed polyline (first point repeated last) resampled at n points evenly spaced by length,
 // starting `offset` (a fraction of the length) from its start.

@@ -4,7 +4,9 @@
 // edge (an open mesh's border is a contour too); a silhouette face holds a silhouette vertex.
 #include "vdbsurf/subdiv/view_refine.h"
 
+#include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/progress.h"
 #include "vdbsurf/subdiv/sqrt2_subdivision.h"
 
 #include <tbb/parallel_for.h>
@@ -124,7 +126,9 @@ Mesh subdivideForView(const Mesh& mesh, const ViewCamera& camera, const ViewRefi
     }
 
     const int deepest = std::max(options.frontDepth, options.silhouetteDepth);
+    Progress progress("view refinement", std::uint64_t(std::max(deepest, 0)), options.cancel);
     for (int i = 1; i <= deepest; ++i) {
+        if (options.cancel) options.cancel->check();
         // (b), (c): faces that meet the criterion leave their set.
         std::vector<std::uint8_t> refine(flags.size(), 0);
         std::size_t count = 0;
@@ -139,6 +143,7 @@ Mesh subdivideForView(const Mesh& mesh, const ViewCamera& camera, const ViewRefi
         // (d): refine the union; children inherit their parents' set membership.
         s.setTags(flags, Sqrt2Subdivider::TagMerge::BitOr);
         s.step(refine);
+        progress.advance();
         rep.refinedPerStep.push_back(count);
         // (e), (f): children stay in a set only while they still face the camera or hold the silhouette.
         flags = s.tags();

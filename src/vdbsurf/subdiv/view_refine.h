@@ -11,10 +11,13 @@
 
 namespace vdbsurf {
 
+class CancelToken;
+
 struct ViewRefineOptions {
     int frontDepth = 4;       // √2 steps for front-facing faces (4 = two Catmull-Clark levels)
     int silhouetteDepth = 8;  // √2 steps for faces holding a silhouette vertex
     double stopPixels = 1.0;  // a face whose projection spans less than this stops refining
+    const CancelToken* cancel = nullptr; // checked before each step (throws Cancelled)
 };
 
 struct ViewRefineReport {
@@ -24,6 +27,7 @@ struct ViewRefineReport {
     std::vector<std::size_t> refinedPerStep; // faces refined by each √2 step
 };
 
+// Shows progress (one unit a step) on a terminal.
 Mesh subdivideForView(const Mesh& mesh, const ViewCamera& camera, const ViewRefineOptions& options, const std::string& inputName,
                       ViewRefineReport* report = nullptr);
 
