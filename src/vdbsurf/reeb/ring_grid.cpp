@@ -3,8 +3,12 @@
 #include "vdbsurf/core/progress.h"
 #include "vdbsurf/mesh/mesh.h"
 
+#include <unsupported/Eigen/FFT>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <complex>
 #include <stdexcept>
 #include <unordered_map>
 
@@ -157,23 +161,76 @@ private:
     std::vector<std::uint32_t> mOrder;
 };
 
-// The offset (fraction of the loop) whose resampling lies closest to `reference`.
-double bestOffset(const std::vector<Vec3d>& loop, const std::vector<Vec3d>& reference) {
+// The two searches below find the shift k (of 4 U) minimising sum_i |samples[(k + 4 i) mod 4 U] -
+// reference[i]|^2: the direct one in O(U^2) (a partial sum stops once it passes the best), the
+// spectral one in O(U log U). Grids sized from their unit (U <= 128) take the direct one.
+constexpr int kDirectShiftSearchMaxU = 128;
+
+int bestShiftDirect(const std::vector<Vec3d>& samples, const std::vector<Vec3d>& reference) {
     const int U = int(reference.size()), fine = 4 * U;
-    const std::vector<Vec3d> samples = resampleLoop(loop, fine, 0.0);
     double bestCost = INFINITY;
     int best = 0;
     for (int k = 0; k < fine; ++k) {
         double cost = 0;
+        std::size_t at = std::size_t(k); // (k + 4 i) mod fine, without a division a term
         for (int i = 0; i < U && cost < bestCost; ++i) {
-            const Vec3d d = samples[std::size_t((k + 4 * i) % fine)] - reference[std::size_t(i)];
+            const Vec3d d = samples[at] - reference[std::size_t(i)];
             cost += dot(d, d);
+            at += 4;
+            if (at >= std::size_t(fine)) at -= std::size_t(fine);
         }
         if (cost < bestCost) {
             bestCost = cost;
             best = k;
         }
     }
+    return best;
+}
+
+// For each of the four interleaved sample sets x_j = samples[c + 4 j], the cost of shift
+// k = c + 4 m is sum |x|^2 + sum |reference|^2 - 2 sum_i x_((m + i) mod U) . reference_i, whose
+// last term, a cyclic correlation, is the inverse FFT of X conj(R) summed over the three axes.
+int bestShiftSpectral(const std::vector<Vec3d>& samples, const std::vector<Vec3d>& reference) {
+    const std::size_t U = reference.size();
+    Eigen::FFT<double> fft;
+    std::vector<double> axis(U);
+    std::array<std::vector<std::complex<double>>, 3> R;
+    for (std::size_t a = 0; a < 3; ++a) {
+        for (std::size_t i = 0; i < U; ++i) axis[i] = reference[i][a];
+        fft.fwd(R[a], axis);
+    }
+    std::array<std::vector<double>, 4> cost;
+    std::vector<std::complex<double>> X, sum(U);
+    for (std::size_t c = 0; c < 4; ++c) {
+        std::fill(sum.begin(), sum.end(), std::complex<double>(0.0));
+        double norm = 0;
+        for (std::size_t a = 0; a < 3; ++a) {
+            for (std::size_t j = 0; j < U; ++j) {
+                axis[j] = samples[c + 4 * j][a];
+                norm += axis[j] * axis[j];
+            }
+            fft.fwd(X, axis);
+            for (std::size_t f = 0; f < U; ++f) sum[f] += X[f] * std::conj(R[a][f]);
+        }
+        std::vector<double> correlation;
+        fft.inv(correlation, sum);
+        cost[c].resize(U);
+        for (std::size_t m = 0; m < U; ++m) cost[c][m] = norm - 2 * correlation[m];
+    }
+    // (sum |reference|^2 is the same for every shift.) The first least cost in k's order, as the
+    // direct search takes it.
+    int best = 0;
+    double bestCost = INFINITY;
+    for (std::size_t k = 0; k < 4 * U; ++k)
+        if (cost[k % 4][k / 4] < bestCost) bestCost = cost[k % 4][k / 4], best = int(k);
+    return best;
+}
+
+// The offset (fraction of the loop) whose resampling lies closest to `reference`.
+double bestOffset(const std::vector<Vec3d>& loop, const std::vector<Vec3d>& reference) {
+    const int U = int(reference.size()), fine = 4 * U;
+    const std::vector<Vec3d> samples = resampleLoop(loop, fine, 0.0);
+    const int best = U > kDirectShiftSearchMaxU ? bestShiftSpectral(samples, reference) : bestShiftDirect(samples, reference);
     return double(best) / fine;
 }
 
