@@ -3,6 +3,7 @@
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/free_memory.h"
+#include "vdbsurf/core/progress.h"
 #include "vdbsurf/density/scene_json.h"
 #include "vdbsurf/vdb/voxel_transform.h"
 
@@ -583,6 +584,7 @@ struct DensityRaster::Impl {
         std::vector<Coord> batchNodes;
         std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
+        Progress progress("rasterize", nodes.size(), options.cancel);
         for (std::size_t batch = 0; batch < nodes.size(); batch += kNodesPerBatch) {
             batchNodes.assign(nodes.begin() + std::ptrdiff_t(batch), nodes.begin() + std::ptrdiff_t(std::min(nodes.size(), batch + kNodesPerBatch)));
             runPlans(batchNodes, plans, results, nullptr);
@@ -599,6 +601,7 @@ struct DensityRaster::Impl {
                 for (auto r = first; r != next; ++r) apply(*r, false);
             }
             checkMemory();
+            progress.advance(batchNodes.size());
         }
         stats.seconds = since(t0);
     }
@@ -648,6 +651,7 @@ struct DensityRaster::Impl {
         std::vector<NodePlan> plans;
         std::vector<LeafResult> results;
         std::uint64_t refilled = 0;
+        Progress progress("edit", nodes.size(), options.cancel);
         for (std::size_t batch = 0; batch < nodes.size(); batch += kNodesPerBatch) {
             batchNodes.assign(nodes.begin() + std::ptrdiff_t(batch), nodes.begin() + std::ptrdiff_t(std::min(nodes.size(), batch + kNodesPerBatch)));
             runPlans(batchNodes, plans, results, &change);
@@ -659,6 +663,7 @@ struct DensityRaster::Impl {
                     refilled += std::uint64_t(f.size / kLeaf) * (f.size / kLeaf) * (f.size / kLeaf);
                 }
             for (LeafResult& r : results) apply(r, true);
+            progress.advance(batchNodes.size());
         }
         broken = false;
         stats.leavesRecomputed = stats.leavesDecided + refilled;
