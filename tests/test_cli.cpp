@@ -329,10 +329,14 @@ TEST_CASE("a camera frustum's grid is listed as one, meshed on its voxels and ma
 TEST_CASE("Ctrl-C stops every long command: exit 130, one message, no output file") {
     // SIGINT half a second in (as a terminal's Ctrl-C or a farm's SIGTERM would come); each job
     // below runs for 10 s or more here (up to 2.4 GB). patches ran on and wrote its files.
-    test::TempDir dir;
+    test::TempDir dir, inputs;
     const std::string spot = test::sharedData("mesh/spot.obj");
     const std::string out = dir.path("out");
+    auto sphere = test::makeSphereLevelSet(1.0, {0, 0, 0}, 0.005); // 3 M voxels: compare measures for 20 s
+    sphere->setName("ls");
+    test::writeGrids(inputs.path("sphere.vdb"), {sphere});
     std::vector<std::vector<std::string>> jobs{
+        {"compare", inputs.path("sphere.vdb"), "--json", out + ".json"},
         {"mesh", "--expr", "x^2+y^2+z^2-1", "--bbox", "-1.1,-1.1,-1.1,1.1,1.1,1.1", "--voxel-size", "0.002", "-o", out + ".ply"},
         {"rasterize", std::string(VDBSURF_SOURCE_DIR) + "/examples/scenes/blobby.json", "--voxel-size", "0.003", "-o", out + ".vdb"}};
     if (spot.empty()) {

@@ -57,7 +57,7 @@ CompareReport compareMeshers(const GridField& field, const CompareRequest& reque
     const double h = report.voxelSize;
 
     // The input's own surface, the measure of every mesh: without one there is nothing to compare.
-    const std::vector<Vec3d> surface = isoSurfaceSamples(field, report.iso, report.gridVoxelSize);
+    const std::vector<Vec3d> surface = isoSurfaceSamples(field, report.iso, report.gridVoxelSize, request.cancel);
     report.surfaceSamples = surface.size();
     if (surface.empty()) {
         throw Error(field.describe(), "has no surface at iso " + messageNumber(report.iso) + " (" + valueRangeText(field) +

@@ -113,8 +113,9 @@ double distanceToIsoSurface(const Field& field, double iso, const Vec3d& p, doub
     return best;
 }
 
-std::vector<Vec3d> isoSurfaceSamples(const Field& field, double iso, double h) {
+std::vector<Vec3d> isoSurfaceSamples(const Field& field, double iso, double h, const CancelToken* cancel) {
     MeshRequest req;
+    req.cancel = cancel;
     req.iso = iso;
     req.voxelSize = h;
     req.method = MeshMethod::MarchingCubes;

@@ -20,8 +20,8 @@ double distanceToIsoSurface(const Field& field, double iso, const Vec3d& p, doub
 // Points on the field's iso surface: the vertices of marching cubes at spacing h on the field's
 // own frame. On a grid meshed at its own voxel size those are exact crossings of the trilinear
 // field, one per crossed voxel edge: the input's surface sampled at the input's resolution. Empty
-// where the field has no surface at that spacing.
-std::vector<Vec3d> isoSurfaceSamples(const Field& field, double iso, double h);
+// where the field has no surface at that spacing. Throws Cancelled once `cancel` is set.
+std::vector<Vec3d> isoSurfaceSamples(const Field& field, double iso, double h, const CancelToken* cancel = nullptr);
 
 struct SurfaceQuality {
     double h = 0;                     // the unit the tolerances below are in
