@@ -119,12 +119,16 @@ void runMesh(const MeshOptions& o) {
     req.sharpCorner = o.sharpCorner;
     req.sharpNoiseShare = o.sharpNoise;
     req.cancel = &processCancelToken();
+    // The lattice is kept until the mesh is written, so that a run cancelled or failing in
+    // between leaves no file at all.
+    std::vector<GridBasePtr> lattice;
+    std::uint64_t latticeMoved = 0;
     if (!o.latticeOut.empty())
-        req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const OwnFrame* frame) {
-            writeLatticeVdb(o.latticeOut, lattice, deformation,
-                            {{"vdbsurf_version", VDBSURF_VERSION}, {"vdbsurf_source", source}, {"vdbsurf_content", "DMC deformed lattice"}},
-                            frame);
-            note("wrote " + o.latticeOut + ": the deformed lattice (" + std::to_string(deformation.movedNodes()) + " nodes moved)");
+        req.deformedLattice = [&](const Lattice& l, const LatticeDeformation& deformation, const OwnFrame* frame) {
+            lattice = latticeGrids(l, deformation,
+                                   {{"vdbsurf_version", VDBSURF_VERSION}, {"vdbsurf_source", source}, {"vdbsurf_content", "DMC deformed lattice"}},
+                                   frame, o.latticeOut);
+            latticeMoved = deformation.movedNodes();
         };
     MeshReport rep;
     Mesh mesh = meshField(*field, req, rep);
@@ -162,6 +166,10 @@ void runMesh(const MeshOptions& o) {
         writeMeshAsLevelSet(o.output, mesh, lw);
     } else {
         writeMesh(o.output, mesh, provenance);
+    }
+    if (!lattice.empty()) {
+        writeVdbFile(o.latticeOut, lattice);
+        note("wrote " + o.latticeOut + ": the deformed lattice (" + std::to_string(latticeMoved) + " nodes moved)");
     }
     const double secondsWrite = since(tWrite);
 

@@ -29,10 +29,10 @@ void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes) {
     for (const Vec3i& n : nodes) activateAround(lattice, cells, openvdb::Coord(n.x, n.y, n.z));
 }
 
-void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
-                     const std::map<std::string, std::string>& metadata, const OwnFrame* own) {
+std::vector<GridBasePtr> latticeGrids(const Lattice& lattice, const LatticeDeformation& deformation,
+                                      const std::map<std::string, std::string>& metadata, const OwnFrame* own, const std::string& what) {
     initializeOpenVdb();
-    const auto xform = latticeTransform(lattice.frame, own, path);
+    const auto xform = latticeTransform(lattice.frame, own, what);
 
     // Nodes of active cells: the cells dilated by one towards +x, +y, +z.
     const openvdb::MaskTree::Ptr cellMask = toStandardMaskTree(*lattice.cells);
@@ -72,7 +72,12 @@ void writeLatticeVdb(const std::string& path, const Lattice& lattice, const Latt
     surface->setTransform(xform->copy());
     for (openvdb::GridBase* g : std::initializer_list<openvdb::GridBase*>{offsets.get(), cells.get(), surface.get()})
         for (const auto& [k, v] : metadata) g->insertMeta(k, openvdb::StringMetadata(v));
-    writeVdbFile(path, {offsets, cells, surface});
+    return {offsets, cells, surface};
+}
+
+void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
+                     const std::map<std::string, std::string>& metadata, const OwnFrame* own) {
+    writeVdbFile(path, latticeGrids(lattice, deformation, metadata, own, path));
 }
 
 } // namespace vdbsurf

@@ -71,5 +71,9 @@ void activateCellsAround(Lattice& lattice, const std::vector<Vec3i>& nodes);
 // offsets are world vectors (from the node's place to where it moved).
 void writeLatticeVdb(const std::string& path, const Lattice& lattice, const LatticeDeformation& deformation,
                      const std::map<std::string, std::string>& metadata, const OwnFrame* own = nullptr);
+// The same three grids, to write later (`mesh --lattice-out` writes them with the mesh, so that
+// a run cancelled in between leaves neither). `what` names the output in errors.
+std::vector<GridBasePtr> latticeGrids(const Lattice& lattice, const LatticeDeformation& deformation,
+                                      const std::map<std::string, std::string>& metadata, const OwnFrame* own, const std::string& what);
 
 } // namespace vdbsurf
