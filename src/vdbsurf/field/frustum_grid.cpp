@@ -27,8 +27,6 @@ namespace {
 
 using openvdb::math::NonlinearFrustumMap;
 
-Vec3d toVec(const openvdb::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
-openvdb::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
 
 // Points whose depth factor (the frustum's scale across its axis, relative to the near plane's)
 // is below this are taken as behind the apex: their preimage is a voxel thousands of times wider
@@ -135,10 +133,8 @@ public:
         gradient = mF.gradientToWorld(gq, q);
         return v;
     }
-    void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override {
-        (void)box;
-        for (std::size_t i = 0; i < n; ++i) out[i] = value(points[i]);
-    }
+    // No faster way than value() a point through the frustum: Field's loops serve.
+    bool values(const Box3&, const Vec3d*, std::size_t, double*) const override { return false; }
     Interval bounds(const Box3& box) const override {
         Vec3d q[8];
         for (int c = 0; c < 8; ++c)
@@ -155,14 +151,7 @@ public:
     double voxelSize() const override { return mF.frameVoxel(); }
     bool axisAligned() const override { return false; }
     LatticeFrame naturalFrame(double h) const override { return {mDomain.min, h}; }
-    void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
-                     double* out) const override {
-        std::size_t i = 0;
-        for (int z = 0; z < dims.z; ++z)
-            for (int y = 0; y < dims.y; ++y)
-                for (int x = 0; x < dims.x; ++x, ++i)
-                    if (!needed || needed[i]) out[i] = value(frame.nodeWorld(first + Vec3i(x, y, z)));
-    }
+    bool sampleNodes(const LatticeFrame&, const Vec3i&, const Vec3i&, const std::uint8_t*, double*) const override { return false; }
     bool directStride(const LatticeFrame&, int&, openvdb::math::Coord&) const override { return false; }
     bool cellsInsideVoxelCells(const LatticeFrame&) const override { return false; }
     // World lattices are not where the data's cells are (the frame's are): every cell is kept.
@@ -193,12 +182,10 @@ private:
 
 double smallestFrustumVoxel(const openvdb::GridBase& grid) {
     const NonlinearFrustumMap& map = *grid.transform().constMap<NonlinearFrustumMap>();
-    const openvdb::BBoxd& box = map.getBBox();
+    const Box3 box{toVec(map.getBBox().min()), toVec(map.getBBox().max())};
     double smallest = std::numeric_limits<double>::infinity();
     for (int c = 0; c < 8; ++c) {
-        const openvdb::Vec3d loc((c & 1) ? box.max().x() : box.min().x(), (c & 2) ? box.max().y() : box.min().y(),
-                                 (c & 4) ? box.max().z() : box.min().z());
-        const openvdb::Vec3d v = map.voxelSize(loc);
+        const openvdb::Vec3d v = map.voxelSize(toVdb(box.corner(c)));
         smallest = std::min({smallest, v.x(), v.y(), v.z()});
     }
     return smallest;

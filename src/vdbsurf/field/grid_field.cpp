@@ -42,9 +42,6 @@ struct StraddleOf {
     bool wholeServes(const MinMax& r) const { return r.lo - clear > iso || r.hi + clear < iso; }
 };
 
-Vec3d toVec(const openvdb::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
-openvdb::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
-
 } // namespace
 
 namespace {
@@ -102,7 +99,7 @@ public:
         return double(openvdb::tools::BoxSampler::sample(acc, worldToIndex(p)));
     }
 
-    void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override {
+    bool values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override {
         // The voxels under the box, read once leaf by leaf (up to 8 a side), then each point
         // interpolated as BoxSampler::sample does: value()'s bits, without a tree walk and eight
         // accessor reads a point.
@@ -112,10 +109,7 @@ public:
         bool small = ib.finite();
         for (int a = 0; a < 3 && small; ++a)
             small = std::fabs(ib.lo[a]) < 1e9 && std::floor(ib.hi[a]) + 2 - std::floor(ib.lo[a]) <= kMaxSide;
-        if (!small) {
-            for (std::size_t i = 0; i < n; ++i) out[i] = value(points[i]);
-            return;
-        }
+        if (!small) return false;
         const Coord base(int(std::floor(ib.lo.x())), int(std::floor(ib.lo.y())), int(std::floor(ib.lo.z())));
         const Vec3i dims(int(std::floor(ib.hi.x())) + 2 - base.x(), int(std::floor(ib.hi.y())) + 2 - base.y(),
                          int(std::floor(ib.hi.z())) + 2 - base.z());
@@ -133,6 +127,7 @@ public:
             }
             out[i] = double(interpolateBlock(voxels, dims, x, y, z, ip - idx));
         }
+        return true;
     }
 
     // Central differences of the trilinear interpolant half a voxel either side, mapped to world
@@ -373,13 +368,13 @@ public:
         });
     }
 
-    void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
+    bool sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
                      double* out) const override {
         int stride = 0;
         Coord offset;
         Acc acc(mTree);
         if (!directStride(frame, stride, offset)) {
-            if (mAxisAligned && sampleNodesFromBlock(frame, first, dims, needed, out)) return;
+            if (mAxisAligned && sampleNodesFromBlock(frame, first, dims, needed, out)) return true;
             std::size_t n = 0;
             for (int k = 0; k < dims.z; ++k)
                 for (int j = 0; j < dims.y; ++j)
@@ -388,12 +383,12 @@ public:
                         const Vec3d p = frame.nodeWorld(first.x + i, first.y + j, first.z + k);
                         out[n] = double(openvdb::tools::BoxSampler::sample(acc, worldToIndex(p)));
                     }
-            return;
+            return true;
         }
         const Coord base(offset.x() + stride * first.x, offset.y() + stride * first.y, offset.z() + stride * first.z);
         if (stride == 1) {
             sampleBlock(acc, base, dims, out);
-            return;
+            return true;
         }
         std::size_t n = 0;
         for (int k = 0; k < dims.z; ++k)
@@ -402,6 +397,7 @@ public:
                     if (needed && !needed[n]) continue;
                     out[n] = double(acc.getValue(Coord(base.x() + stride * i, base.y() + stride * j, base.z() + stride * k)));
                 }
+        return true;
     }
 
     // sampleNodes on an axis-aligned grid whose voxels the nodes do not sit on: the voxels under
@@ -775,7 +771,9 @@ Vec3d GridField::gradient(const Vec3d& p) const { return mImpl->gradient(p); }
 double GridField::valueAndGradient(const Vec3d& p, Vec3d& gradient) const { return mImpl->valueAndGradient(p, gradient); }
 Interval GridField::bounds(const Box3& box) const { return mImpl->bounds(box); }
 bool GridField::mayStraddle(const Box3& box, double iso) const { return mImpl->mayStraddle(box, iso); }
-void GridField::values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const { mImpl->values(box, points, n, out); }
+void GridField::values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const {
+    if (!mImpl->values(box, points, n, out)) Field::values(box, points, n, out);
+}
 Box3 GridField::domain() const { return mImpl->domain(); }
 std::optional<double> GridField::naturalSpacing() const {
     // Where the grid has its own frame, a spacing counts in the frame's units.
@@ -787,7 +785,7 @@ GridBaseCPtr GridField::grid() const { return mImpl->grid(); }
 
 void GridField::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
                             double* out) const {
-    mImpl->sampleNodes(frame, first, dims, needed, out);
+    if (!mImpl->sampleNodes(frame, first, dims, needed, out)) Field::sampleNodes(frame, first, dims, needed, out);
 }
 
 bool GridField::cellBoundsAreCornerRange(const LatticeFrame& frame) const { return mImpl->cellsInsideVoxelCells(frame); }

@@ -5,18 +5,25 @@
 #include "vdbsurf/field/grid_field.h"
 
 #include <openvdb/math/Coord.h>
+#include <openvdb/math/Vec3.h>
 
 #include <cstdint>
 #include <memory>
 
 namespace vdbsurf {
 
+// Between vdbsurf's vectors and OpenVDB's.
+inline Vec3d toVec(const openvdb::math::Vec3d& v) { return {v.x(), v.y(), v.z()}; }
+inline openvdb::math::Vec3d toVdb(const Vec3d& v) { return {v.x, v.y, v.z}; }
+
 struct GridField::Impl {
     virtual ~Impl() = default;
     virtual double value(const Vec3d& p) const = 0;
     virtual Vec3d gradient(const Vec3d& p) const = 0;
     virtual double valueAndGradient(const Vec3d& p, Vec3d& gradient) const = 0;
-    virtual void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const = 0;
+    // values() and sampleNodes() return false, writing nothing, where they have no faster way than
+    // value() a point: GridField then takes Field's, which asks value().
+    virtual bool values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const = 0;
     virtual Interval bounds(const Box3& box) const = 0;
     virtual bool mayStraddle(const Box3& box, double iso) const = 0;
     virtual Box3 domain() const = 0;
@@ -24,7 +31,7 @@ struct GridField::Impl {
     virtual double voxelSize() const = 0;
     virtual bool axisAligned() const = 0;
     virtual LatticeFrame naturalFrame(double h) const = 0;
-    virtual void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
+    virtual bool sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
                              const std::uint8_t* needed, double* out) const = 0;
     virtual bool directStride(const LatticeFrame& frame, int& stride, openvdb::math::Coord& offset) const = 0;
     virtual bool cellsInsideVoxelCells(const LatticeFrame& frame) const = 0;
