@@ -127,8 +127,7 @@ UnitPatch fitUnit(const ReebGraph& g, const PatchSet& set, const Unit& unit, Rin
 
 std::vector<RingGrid> ringGrids(const ReebGraph& g, const PatchOptions& options) {
     std::vector<RingGrid> grids(g.units.size());
-    const std::uint64_t perUnit = std::uint64_t(kSectionPasses) * std::uint64_t(options.gridV > 0 ? options.gridV : kMaxAutoV);
-    Progress progress("ring grids", perUnit * grids.size(), options.cancel);
+    Progress progress("ring grids", ringGridProgressUnits(options.gridV) * grids.size(), options.cancel);
     tbb::parallel_for(std::size_t(0), grids.size(), [&](std::size_t u) {
         grids[u] = ringGrid(g, g.units[u], options.gridU, options.gridV, options.cancel, &progress);
     });

@@ -237,7 +237,7 @@ double bestOffset(const std::vector<Vec3d>& loop, const std::vector<Vec3d>& refe
 } // namespace
 
 RingGrid ringGrid(const ReebGraph& g, const Unit& unit, int U, int V, const CancelToken* cancel, Progress* progress) {
-    const std::uint64_t share = std::uint64_t(kSectionPasses) * std::uint64_t(V > 0 ? V : kMaxAutoV);
+    const std::uint64_t share = ringGridProgressUnits(V);
     std::uint64_t advanced = 0;
     const UnitEnd bottom = unitEnd(g, unit, false), top = unitEnd(g, unit, true);
     const Sectioner sectioner(unit, g.axis);

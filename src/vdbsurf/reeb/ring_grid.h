@@ -6,6 +6,7 @@
 #pragma once
 #include "vdbsurf/reeb/reeb_graph.h"
 
+#include <cstdint>
 #include <vector>
 
 namespace vdbsurf {
@@ -40,9 +41,10 @@ struct RingGrid {
 // U, V <= 0 choose the size from the unit: about one grid point per four of the unit's input
 // vertices, spaced alike in both directions (U in [8, 128], V in [4, 128]).
 // The sections are cut up to kSectionPasses times (their heights re-spaced between passes);
-// `progress`, where given, advances by V a pass and by kSectionPasses * (V, or kMaxAutoV when
-// V <= 0) in all. Throws Cancelled between sections once `cancel` is set.
+// `progress`, where given, advances by V a pass and by ringGridProgressUnits(V) in all. Throws
+// Cancelled between sections once `cancel` is set.
 constexpr int kSectionPasses = 4, kMaxAutoV = 128;
+inline std::uint64_t ringGridProgressUnits(int V) { return std::uint64_t(kSectionPasses) * std::uint64_t(V > 0 ? V : kMaxAutoV); }
 RingGrid ringGrid(const ReebGraph& graph, const Unit& unit, int U = 0, int V = 0, const CancelToken* cancel = nullptr,
                   Progress* progress = nullptr);
 
