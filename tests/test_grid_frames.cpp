@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <random>
 #include <stdexcept>
 #include <string>
@@ -290,15 +291,22 @@ FrustumSphere frustumSphere(const openvdb::math::Transform::Ptr& xform) {
     return s;
 }
 
-} // namespace
-
-TEST_CASE("a frustum grid answers in world space through its frustum: values, gradients, bounds and domain") {
+// Runs `check` on the sphere of frustumSphere() in each frustum case, mirrored and not.
+void forEachFrustumSphere(const std::function<void(const Case&, const FrustumSphere&, const GridField&)>& check) {
     initializeOpenVdb();
     for (const bool mirrored : {false, true}) {
         const Case c = frustumCase(mirrored);
         INFO(c.name);
         const FrustumSphere s = frustumSphere(c.xform);
         const GridField field(s.grid, c.name);
+        check(c, s, field);
+    }
+}
+
+} // namespace
+
+TEST_CASE("a frustum grid answers in world space through its frustum: values, gradients, bounds and domain") {
+    forEachFrustumSphere([](const Case& c, const FrustumSphere& s, const GridField& field) {
         REQUIRE(field.ownFrame() != nullptr);
         REQUIRE(field.ownFrame()->curved != nullptr);
         // The frame's voxel is the smallest: at the near plane (taper 0.6 widens them with depth).
@@ -356,16 +364,11 @@ TEST_CASE("a frustum grid answers in world space through its frustum: values, gr
         CHECK(outside == 0);
         CHECK(reachingBehind > 0);
         CHECK(reachingBehind < 300);
-    }
+    });
 }
 
 TEST_CASE("a frustum grid's sphere comes out closed, facing out and on the sphere, and compare measures it in world") {
-    initializeOpenVdb();
-    for (const bool mirrored : {false, true}) {
-        const Case c = frustumCase(mirrored);
-        INFO(c.name);
-        const FrustumSphere s = frustumSphere(c.xform);
-        const GridField field(s.grid, c.name);
+    forEachFrustumSphere([](const Case& c, const FrustumSphere& s, const GridField& field) {
         const double farVoxel = c.xform->voxelSize(openvdb::Vec3d(20, 20, 20)).length();
         for (const MeshMethod method : {MeshMethod::MarchingCubes, MeshMethod::Dmc}) {
             INFO(methodName(method));
@@ -412,7 +415,7 @@ TEST_CASE("a frustum grid's sphere comes out closed, facing out and on the spher
             worst = std::max(worst, length(Vec3d(a.x(), a.y(), a.z()) - rep.ownFrame->apply(rep.frame.nodeWorld(n))));
         }
         CHECK(worst < 1e-9);
-    }
+    });
 }
 
 TEST_CASE("a frustum grid whose data reaches behind its camera is refused, naming the grid") {
