@@ -1002,7 +1002,9 @@ TEST_CASE("a weld that splits a pinched polygon rewrites the mesh whether its po
         CHECK(m.offsets.size() == 4);
         CHECK(m.offsets.back() == m.indices.size());
         using C = std::vector<std::array<float, 3>>;
-        CHECK(corners(m) == std::vector<C>{C{{0, 0, 0}, {1, 0, 0}, {1, 1, 0}}, C{{0, 2, 0}, {1, 1, 0}, {2, 2, 0}},
+        // (Each copy of the pinch point moved 5 % of the way to its triangle's other corners'
+        // centroid: mesh/separate_points.h.)
+        CHECK(corners(m) == std::vector<C>{C{{0, 0, 0}, {1, 0, 0}, {0.975f, 0.95f, 0}}, C{{0, 2, 0}, {1, 1.05f, 0}, {2, 2, 0}},
                                            C{{8, 1, 0}, {9, 0, 0}, {9, 1, 0}}});
         // The points the collapsed triangle alone used are gone; one copy of the pinch point was added.
         CHECK(m.points.size() == 9);
@@ -1245,10 +1247,14 @@ TEST_CASE("two balls touching exactly at a lattice node stay two vertex-manifold
         CHECK(t.nonManifoldVertices == 0);
         requireClosed(m);
         CHECK(countComponents(m) == 2);
-        // Both copies of the touching point are there, one per ball.
-        std::size_t atOrigin = 0;
-        for (const Vec3f& p : m.points) atOrigin += length(Vec3d(p)) < 1e-9;
-        CHECK(atOrigin == 2);
+        // Both copies of the touching point are there, one per ball, each moved a hair into its
+        // own ball's fan (mesh/separate_points.h): the balls no longer share a point.
+        std::vector<Vec3f> nearOrigin;
+        for (const Vec3f& p : m.points)
+            if (length(Vec3d(p)) < 0.05 * 0.1) nearOrigin.push_back(p);
+        REQUIRE(nearOrigin.size() == 2);
+        CHECK(nearOrigin[0].x * nearOrigin[1].x < 0);
+        CHECK(countCoincidentPoints(m) == 0);
     }
 }
 

@@ -220,6 +220,7 @@ void runMesh(const MeshOptions& o) {
                            {"welded_vertices", rep.weldedVertices},
                            {"collapsed_polygons", rep.collapsedPolygons},
                            {"split_vertices", rep.splitVertices},
+                           {"separated_vertices", rep.separatedVertices},
                            {"folds_closed", rep.foldsClosed},
                            {"fit_edges_split", rep.fitEdgesSplit},
                            {"fit_centres", rep.fitCentres},

@@ -805,16 +805,20 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t li = r.begin(); li < r.end(); ++li) im.work[li] = LeafWork();
     });
+    std::vector<std::uint32_t> added; // by beforeWeld (the surface fit: vertices on feature points among them)
     if (beforeWeld) {
         std::vector<std::uint32_t> toWeld(atNode.size());
         for (std::size_t i = 0; i < atNode.size(); ++i) toWeld[i] = atNode[i].first;
+        const std::size_t before = mesh.points.size();
         beforeWeld(mesh, toWeld);
+        for (std::size_t v = before; v < mesh.points.size(); ++v) added.push_back(std::uint32_t(v));
     }
-    const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded);
+    const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added);
     im.stats.weldedVertices = welding.weldedVertices;
     im.stats.collapsedPolygons = welding.collapsedPolygons;
     im.stats.splitVertices = welding.splitVertices;
     im.stats.foldsClosed = welding.foldsClosed;
+    im.stats.separatedVertices = welding.separatedVertices;
     im.stats.seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return mesh;
 }

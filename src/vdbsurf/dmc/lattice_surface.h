@@ -51,6 +51,7 @@ struct SurfaceStats {
     std::uint64_t collapsedPolygons = 0;
     std::uint64_t splitVertices = 0; // welded nodes given one copy per further fan of polygons
     std::uint64_t foldsClosed = 0;   // vertices whose fan two polygons closed alone, folded (mesh/mesh_folds.h)
+    std::uint64_t separatedVertices = 0; // vertices left on one node's point, moved apart (mesh/separate_points.h)
     // Leaves where nearly every surface cell's normals may turn past the edge threshold: the
     // surface is not resolved there (noise) and they hold no sharp candidates.
     std::uint64_t unresolvedLeaves = 0;

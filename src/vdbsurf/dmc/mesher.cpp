@@ -9,6 +9,7 @@
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/dmc/thin_simplify.h"
 #include "vdbsurf/lattice/lattice.h"
+#include "vdbsurf/mesh/separate_points.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include <tbb/blocked_range.h>
@@ -212,6 +213,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.collapsedPolygons = surface->stats().collapsedPolygons;
     report.splitVertices = surface->stats().splitVertices;
     report.foldsClosed = surface->stats().foldsClosed;
+    report.separatedVertices = surface->stats().separatedVertices;
     report.secondsMesh = surface->stats().seconds;
     report.cellsWithoutData = lattice.stats.cellsWithoutData;
     if (report.cellsWithoutData > 0) {
@@ -223,7 +225,13 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         // at a vertex: split it, one per fan, as the weld does, so what leaves is vertex-manifold.
         std::vector<std::uint32_t> everyVertex(mesh.points.size());
         std::iota(everyVertex.begin(), everyVertex.end(), 0u);
-        report.splitVertices += splitFansAt(mesh, std::move(everyVertex));
+        const std::size_t beforeSplit = mesh.points.size();
+        report.splitVertices += splitFansAt(mesh, everyVertex);
+        if (mesh.points.size() > beforeSplit) {
+            // The copies and the vertices they came from (every vertex: the copies do not say).
+            for (std::size_t v = beforeSplit; v < mesh.points.size(); ++v) everyVertex.push_back(std::uint32_t(v));
+            report.separatedVertices += separateCoincidentPoints(mesh, std::move(everyVertex));
+        }
     }
     if (simplify && !thinNodes.empty()) {
         ThinSimplifyOptions tso;

@@ -81,6 +81,9 @@ struct MeshReport {
     std::uint64_t unresolvedLeaves = 0;
     std::uint64_t weldedVertices = 0, collapsedPolygons = 0, splitVertices = 0;
     std::uint64_t foldsClosed = 0; // by the weld and the thin simplification (mesh/mesh_folds.h)
+    // Vertices that the weld or a split left at one point with another, moved apart a little
+    // (mesh/separate_points.h): the mesh is manifold where points are merged by position too.
+    std::uint64_t separatedVertices = 0;
     // Cells whose values are all the field's fill (LatticeStats::cellsWithoutData), and the polygons
     // left out there: a grid's inactive inside meeting its outside where a band ends open.
     std::uint64_t cellsWithoutData = 0, polygonsWithoutData = 0;

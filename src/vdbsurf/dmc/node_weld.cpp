@@ -2,6 +2,7 @@
 
 #include "vdbsurf/core/prefault.h"
 #include "vdbsurf/mesh/mesh_folds.h"
+#include "vdbsurf/mesh/separate_points.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include <tbb/blocked_range.h>
@@ -394,10 +395,15 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
 }
 
 // weldNodeVertices for nodes of two vertices or more; repOf as representatives() gives it.
+// `suspects`: the vertices that may share a point with another when the weld is done (see
+// weldNodeVertices), numbered as before it; they are separated before the folds are closed.
 NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, const std::vector<std::uint32_t>& repOf,
-                          const std::vector<std::uint8_t>& rounded) {
+                          const std::vector<std::uint8_t>& rounded, std::vector<std::uint32_t> suspects) {
     NodeWeldStats stats;
-    if (atNode.empty()) return stats;
+    if (atNode.empty()) {
+        stats.separatedVertices = separateCoincidentPoints(mesh, std::move(suspects));
+        return stats;
+    }
 
     // Only polygons through a vertex on a node can change: the attempts below redo just those.
     std::vector<std::uint8_t> onNode = prefaultedVector<std::uint8_t>(mesh.points.size(), 0);
@@ -439,7 +445,10 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
             ++welded;
             isRep[rep] = 1;
         }
-        if (welded == 0) return stats;
+        if (welded == 0) {
+            stats.separatedVertices = separateCoincidentPoints(mesh, std::move(suspects));
+            return stats;
+        }
 
         // The candidates' polygons after welding: candidate k becomes loops [firstLoop[k], firstLoop[k + 1]).
         std::vector<Loops> parts(chunkCount(candidates.size()));
@@ -497,7 +506,13 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
         std::vector<std::uint32_t> welds;
         for (std::uint32_t rep : repOf)
             if (isRep[rep] && newId[rep] != kNone) welds.push_back(newId[rep]);
-        stats.splitVertices = splitFansAt(mesh, std::move(welds), &fromCandidates);
+        const std::size_t beforeSplit = mesh.points.size();
+        stats.splitVertices = splitFansAt(mesh, welds, &fromCandidates);
+        // What is left on a node's point: its vertices kept apart, the copies of a split one.
+        for (std::uint32_t& v : suspects) v = newId[v]; // (kNone where gone: skipped)
+        suspects.insert(suspects.end(), welds.begin(), welds.end());
+        for (std::size_t v = beforeSplit; v < mesh.points.size(); ++v) suspects.push_back(std::uint32_t(v));
+        stats.separatedVertices = separateCoincidentPoints(mesh, std::move(suspects));
         // Where the polygons between two others at a vertex collapsed, those two can close its
         // fan alone, folded onto each other; only polygons that came from candidates can.
         const FoldStats folds = closeFolds(mesh, std::move(fromCandidates), slot);
@@ -510,8 +525,14 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
 } // namespace
 
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
-                               const std::vector<std::uint8_t>& rounded) {
-    if (atNode.empty()) return {};
+                               const std::vector<std::uint8_t>& rounded, const std::vector<std::uint32_t>& alsoSuspect) {
+    std::vector<std::uint32_t> suspects = alsoSuspect;
+    for (const auto& [v, node] : atNode) suspects.push_back(v);
+    if (atNode.empty()) {
+        NodeWeldStats stats;
+        stats.separatedVertices = separateCoincidentPoints(mesh, std::move(suspects));
+        return stats;
+    }
     std::vector<std::uint32_t> listed;
     const std::vector<std::uint32_t> repOf = representatives(atNode, listed);
     // A node with one vertex has nothing to weld: left out, the attempts touch only the polygons
@@ -526,7 +547,7 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         severalRep.push_back(repOf[k]);
         if (!rounded.empty()) severalRounded.push_back(rounded[k]);
     }
-    return weldSeveral(mesh, several, severalRep, severalRounded);
+    return weldSeveral(mesh, several, severalRep, severalRounded, std::move(suspects));
 }
 
 } // namespace vdbsurf

@@ -6,7 +6,10 @@
 // direction), that node keeps its vertices apart, as plain marching cubes would. Where separate
 // fans of polygons then meet at a welded vertex, each further fan gets its own copy, so the mesh
 // stays vertex-manifold. Where two polygons are left alone around a vertex, folded onto each
-// other, the fold is closed (mesh/mesh_folds.h). Unused vertices are removed.
+// other, the fold is closed (mesh/mesh_folds.h). Vertices left sharing a point (a node's kept
+// apart, a split one's copies, or one of them and a vertex the surface fit put on a feature point)
+// are moved apart a little, each into its own fan (mesh/separate_points.h). Unused vertices are
+// removed.
 //
 // Only polygons through a node vertex can change; the work is done on them alone, in parallel
 // over fixed chunks, so the output does not depend on the number of threads.
@@ -25,6 +28,7 @@ struct NodeWeldStats {
     std::uint64_t collapsedPolygons = 0; // polygons that lost their area (pillows included)
     std::uint64_t splitVertices = 0;     // welded vertices given one copy per further fan
     std::uint64_t foldsClosed = 0;       // vertices whose fan two polygons closed alone (mesh/mesh_folds.h)
+    std::uint64_t separatedVertices = 0; // vertices left on one point, moved apart (mesh/separate_points.h)
 };
 
 // `atNode` lists (vertex, node) for every vertex on a node, in a fixed order: the first vertex
@@ -33,7 +37,8 @@ struct NodeWeldStats {
 // value): a node that has only such vertices, and whose polygons would all collapse, keeps them
 // apart. Throws std::logic_error if no choice of nodes to keep apart leaves an edge-manifold mesh
 // within a few attempts (not seen on marching-cubes meshes).
+// `alsoSuspect`: further vertices that may lie on a node's point (the surface fit's).
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
-                               const std::vector<std::uint8_t>& rounded = {});
+                               const std::vector<std::uint8_t>& rounded = {}, const std::vector<std::uint32_t>& alsoSuspect = {});
 
 } // namespace vdbsurf

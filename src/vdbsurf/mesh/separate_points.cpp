@@ -1,0 +1,99 @@
+#include "vdbsurf/mesh/separate_points.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <tuple>
+
+namespace vdbsurf {
+
+namespace {
+
+bool isFinite(const Vec3f& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+
+bool positionBefore(const Vec3f& p, const Vec3f& q) { return std::tie(p.x, p.y, p.z) < std::tie(q.x, q.y, q.z); }
+
+// p moved `share` of the way to c, as a float that differs from p (one float step along the
+// direction's largest component where the share rounds away).
+Vec3f towards(const Vec3f& p, const Vec3d& c, double share) {
+    const Vec3d from(p);
+    const Vec3d d = c - from;
+    Vec3f q(from + d * share);
+    if (q == p) {
+        int axis = 0;
+        for (int a = 1; a < 3; ++a)
+            if (std::abs(d[a]) > std::abs(d[axis])) axis = a;
+        q[axis] = std::nextafter(p[axis], float(c[axis]));
+    }
+    return q;
+}
+
+} // namespace
+
+std::size_t separateCoincidentPoints(Mesh& mesh, std::vector<std::uint32_t> suspects) {
+    suspects.erase(std::remove_if(suspects.begin(), suspects.end(),
+                                  [&](std::uint32_t v) { return v >= mesh.points.size() || !isFinite(mesh.points[v]); }),
+                   suspects.end());
+    std::sort(suspects.begin(), suspects.end());
+    suspects.erase(std::unique(suspects.begin(), suspects.end()), suspects.end());
+    std::stable_sort(suspects.begin(), suspects.end(),
+                     [&](std::uint32_t a, std::uint32_t b) { return positionBefore(mesh.points[a], mesh.points[b]); });
+    // Runs of one position, two vertices or more: [start, end) into `grouped`.
+    std::vector<std::uint32_t> grouped;
+    std::vector<std::pair<std::size_t, std::size_t>> groups;
+    for (std::size_t i = 0; i < suspects.size();) {
+        std::size_t j = i + 1;
+        while (j < suspects.size() && mesh.points[suspects[j]] == mesh.points[suspects[i]]) ++j;
+        if (j - i > 1) {
+            groups.emplace_back(grouped.size(), grouped.size() + (j - i));
+            grouped.insert(grouped.end(), suspects.begin() + std::ptrdiff_t(i), suspects.begin() + std::ptrdiff_t(j));
+        }
+        i = j;
+    }
+    if (groups.empty()) return 0;
+
+    // Each grouped vertex's neighbours along its polygons' edges, summed in polygon order.
+    constexpr std::uint32_t kNone = ~std::uint32_t(0);
+    std::vector<std::uint32_t> slot(mesh.points.size(), kNone);
+    for (std::size_t k = 0; k < grouped.size(); ++k) slot[grouped[k]] = std::uint32_t(k);
+    std::vector<Vec3d> sum(grouped.size(), Vec3d(0, 0, 0));
+    std::vector<std::uint32_t> count(grouped.size(), 0);
+    for (std::size_t f = 0; f < mesh.polygonCount(); ++f) {
+        const std::uint32_t* p = mesh.polygon(f);
+        const std::uint32_t n = mesh.polygonSize(f);
+        for (std::uint32_t i = 0; i < n; ++i) {
+            const std::uint32_t k = slot[p[i]];
+            if (k == kNone) continue;
+            for (const std::uint32_t w : {p[i > 0 ? i - 1 : n - 1], p[i + 1 < n ? i + 1 : 0]}) {
+                if (mesh.points[w] == mesh.points[p[i]]) continue; // another copy, or a collapsed edge
+                sum[k] += Vec3d(mesh.points[w]);
+                ++count[k];
+            }
+        }
+    }
+
+    std::size_t moved = 0;
+    std::vector<Vec3f> taken;
+    for (const auto& [b, e] : groups) {
+        const Vec3f at = mesh.points[grouped[b]];
+        taken.assign(1, at);
+        // Members with no neighbour elsewhere (unused, or all of whose polygons lie at this point)
+        // stay; if several would, one of them is no better than another.
+        for (std::size_t k = b; k < e; ++k) {
+            if (count[k] == 0) continue;
+            const Vec3d centroid = sum[k] / double(count[k]);
+            Vec3f q = towards(at, centroid, kSeparationShare);
+            // (Symmetric neighbours, or a share that rounds to the same float: further, then a
+            // float step at a time.)
+            for (int step = 2; step < 64 && std::find(taken.begin(), taken.end(), q) != taken.end(); ++step)
+                q = step <= 8 ? towards(at, centroid, kSeparationShare * step)
+                              : Vec3f(std::nextafter(q.x, std::numeric_limits<float>::infinity()), q.y, q.z);
+            taken.push_back(q);
+            mesh.points[grouped[k]] = q;
+            ++moved;
+        }
+    }
+    return moved;
+}
+
+} // namespace vdbsurf
