@@ -434,7 +434,14 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             p.point = corner;
             p.distance = length(corner - frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z())));
             p.inside = insideAt(p.node);
-            return record(p, FieldCheck{{c[i], c[j], c[k]}, 3, n[i] + n[j] + n[k]}, defer);
+            // The solid behind a corner is probed at one angle to its three faces (n · d = 1 for
+            // each: d points out of the solid's cone, whatever the corner's shape). Their normals'
+            // sum can point out of an acute corner: at a shallow pyramid's base corner, through
+            // the base, and the corner was rejected.
+            Vec3d behind;
+            const double ones[3] = {1, 1, 1};
+            if (!intersectPlanes(planes, ones, behind)) behind = n[i] + n[j] + n[k];
+            return record(p, FieldCheck{{c[i], c[j], c[k]}, 3, behind}, defer);
         };
         // The edge where the planes of crossings i and j meet, placed along the line at `along`
         // (a point whose projection fixes where on the line the cell is): the cell corner whose
