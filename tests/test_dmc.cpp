@@ -1,5 +1,6 @@
 // Deformed Marching Cubes: thin parts kept (plates, rods, shells, cracks at random orientations),
 // the paper's lens, spikes and rotated cube, topology, determinism, and the switches.
+#include "support/formula_text.h"
 #include "support/shapes.h"
 #include "support/test_support.h"
 
@@ -29,17 +30,15 @@
 #include <tuple>
 
 using namespace vdbsurf;
+using test::dotWith;
+using test::eulerRotation;
+using test::inFrame;
+using test::num;
+using test::Rotation;
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-std::string num(double v) {
-    std::ostringstream s;
-    s.precision(17);
-    s << v;
-    return "(" + s.str() + ")";
-}
 
 Mesh meshFormula(const std::string& formula, const Box3& box, double h, MeshMethod method = MeshMethod::Dmc, bool thin = true,
                  bool sharp = true) {
@@ -83,28 +82,8 @@ void frameOf(const Vec3d& n, Vec3d& a, Vec3d& b) {
     b = cross(n, a);
 }
 
-std::string dotWith(const Vec3d& n, const Vec3d& c) {
-    return "(" + num(n.x) + "*(x-" + num(c.x) + ")+" + num(n.y) + "*(y-" + num(c.y) + ")+" + num(n.z) + "*(z-" + num(c.z) + "))";
-}
 std::string radius2(const Vec3d& c) { return "((x-" + num(c.x) + ")^2+(y-" + num(c.y) + ")^2+(z-" + num(c.z) + ")^2)"; }
 
-// Rotation from Euler angles (about x, then y, then z); a cube's local axes are its columns.
-struct Rotation {
-    double m[3][3];
-    const double* operator[](int r) const { return m[r]; }
-};
-Rotation eulerRotation(double ax, double ay, double az) {
-    const double cx = std::cos(ax), sx = std::sin(ax), cy = std::cos(ay), sy = std::sin(ay), cz = std::cos(az), sz = std::sin(az);
-    return {{{cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx},
-             {sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx},
-             {-sy, cy * sx, cy * cx}}};
-}
-
-// Point q of a frame rotated by R and moved by c, in world coordinates.
-Vec3d inFrame(const Rotation& R, const Vec3d& c, const Vec3d& q) {
-    return c + Vec3d(R[0][0] * q.x + R[0][1] * q.y + R[0][2] * q.z, R[1][0] * q.x + R[1][1] * q.y + R[1][2] * q.z,
-                     R[2][0] * q.x + R[2][1] * q.y + R[2][2] * q.z);
-}
 
 double nearestVertex(const Mesh& m, const Vec3d& p) {
     double nearest = INFINITY;

@@ -1,6 +1,8 @@
 // DMC's simplification of thin parts (dmc/thin_simplify): rods thinner than a cell come out as a
 // few triangles, closed and in one piece, every vertex one the mesher made, every vertex it
 // removed within the tolerance of what is left; thick parts beside them are not touched.
+#include "support/formula_text.h"
+
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/mesh/mesh_check.h"
@@ -18,18 +20,12 @@
 #include <vector>
 
 using namespace vdbsurf;
+using test::num;
 
 namespace {
 
 constexpr double kH = 0.1;
 const Box3 kBox{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
-
-std::string num(double v) {
-    std::ostringstream s;
-    s.precision(17);
-    s << "(" << v << ")";
-    return s.str();
-}
 
 // Distance to the segment c ± halfLength d, minus the radius: a capsule.
 std::string capsule(const Vec3d& c, const Vec3d& d, double halfLength, double radius) {

@@ -1,5 +1,6 @@
 // Vertices the mesher leaves at one point (mesh/separate_points.h): moved apart, each into its
 // own fan, so that merging points by position (trimesh, Blender, Houdini) keeps meshes manifold.
+#include "support/formula_text.h"
 #include "support/test_support.h"
 
 #include "vdbsurf/dmc/mesher.h"
@@ -13,9 +14,9 @@
 
 #include <cmath>
 #include <random>
-#include <sstream>
 
 using namespace vdbsurf;
+using test::num;
 
 namespace {
 
@@ -101,37 +102,31 @@ TEST_CASE("no two vertices of a DMC or marching-cubes mesh share a point: merged
     // Random rotated sharp shapes (a box with a box cut out of it, two boxes joined, a knife edge)
     // and a real fog volume left vertices at one point: crossings at a node kept apart so that no
     // edge holds three polygons, copies of a vertex where two fans touch, a feature point the
-    // surface fit put where a node stood. Before, 19 of these 80 shapes (DMC's) had some, and the
+    // surface fit put where a node stood. Before, 20 of these 80 shapes (DMC's) had some, and the
     // smoke with either mesher; merged by position, none of them was manifold.
     std::mt19937 rng(20261126);
     std::uniform_real_distribution<double> u(0, 1);
-    auto num = [](double v) {
-        std::ostringstream s;
-        s.precision(17);
-        s << "(" << v << ")";
-        return s.str();
-    };
+    // (A rotation from a random unit quaternion; its rows are the rotated frame's axes here.)
     auto randomRotation = [&] {
         double q[4], n = 0;
         for (double& c : q) c = u(rng) - 0.5, n += c * c;
         for (double& c : q) c /= std::sqrt(n);
         const double x = q[0], y = q[1], z = q[2], w = q[3];
-        return std::array<std::array<double, 3>, 3>{{{1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)},
-                                                      {2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)},
-                                                      {2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)}}};
+        return test::Rotation{{{1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)},
+                               {2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)},
+                               {2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)}}};
     };
+    auto row = [](const test::Rotation& r, int i) { return Vec3d(r[i][0], r[i][1], r[i][2]); };
     // A rotated box as a formula: max over its axes of |axis . (p - c)| - half extent.
     auto box = [&](const Vec3d& c, const Vec3d& h) {
-        const auto r = randomRotation();
+        const test::Rotation r = randomRotation();
         std::string f = "max(";
-        for (int i = 0; i < 3; ++i)
-            f += std::string(i ? ", " : "") + "abs(" + num(r[i][0]) + "*(x-" + num(c.x) + ")+" + num(r[i][1]) + "*(y-" + num(c.y) + ")+" +
-                 num(r[i][2]) + "*(z-" + num(c.z) + "))-" + num(h[i]);
+        for (int i = 0; i < 3; ++i) f += std::string(i ? ", " : "") + "abs" + test::dotWith(row(r, i), c) + "-" + num(h[i]);
         return f + ")";
     };
     auto knifeEdge = [&](double angle) {
-        const auto r = randomRotation();
-        auto axis = [&](int i) { return "(" + num(r[i][0]) + "*x+" + num(r[i][1]) + "*y+" + num(r[i][2]) + "*z)"; };
+        const test::Rotation r = randomRotation();
+        auto axis = [&](int i) { return test::dotWith(row(r, i), Vec3d(0, 0, 0)); };
         const double c = std::cos(angle / 2), s = std::sin(angle / 2);
         return "max(" + num(c) + "*" + axis(1) + "-" + num(s) + "*" + axis(0) + ", -" + num(c) + "*" + axis(1) + "-" + num(s) + "*" +
                axis(0) + ", sqrt(x^2+y^2+z^2)-0.6)";
