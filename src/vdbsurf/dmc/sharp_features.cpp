@@ -315,6 +315,14 @@ bool isCornerOf(const Coord& node, const Coord& cell) {
     return d.x() >= 0 && d.x() <= 1 && d.y() >= 0 && d.y() <= 1 && d.z() >= 0 && d.z() <= 1;
 }
 
+// Is node a corner of the cell or of one of the 26 around it? An acute corner's tip reaches into
+// a cell that sees only two of its faces (the third passes the tip by less than a cell); the three
+// are seen together only a cell back, where the planes meet outside the cell.
+bool nearCell(const Coord& node, const Coord& cell) {
+    const Coord d = node - cell;
+    return d.x() >= -1 && d.x() <= 2 && d.y() >= -1 && d.y() <= 2 && d.z() >= -1 && d.z() <= 2;
+}
+
 } // namespace
 
 void placeSharpFeatures(const Field& field, const Lattice& lattice, const LatticeSurface& surface, const SharpOptions& options,
@@ -416,13 +424,30 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             recorded.push_back({p, defer ? check : FieldCheck(), defer ? kUnchecked : kPassed});
             return true;
         };
-        // A corner where the planes of crossings i, j, k meet, for the cell corner nearest it.
-        auto proposeCorner = [&](int i, int j, int k, bool defer) {
+        // A corner where the planes of crossings i, j, k meet (and l's, if l >= 0: an apex of four
+        // faces, as an octahedron's), for the cell corner nearest it.
+        auto proposeCorner = [&](int i, int j, int k, bool defer, int l = -1) {
             ++local.cornerCells;
-            const Vec3d planes[3] = {n[i], n[j], n[k]};
-            const double rhs[3] = {dot(n[i], c[i]), dot(n[j], c[j]), dot(n[k], c[k])};
+            int face[4] = {i, j, k, l};
+            if (l >= 0) {
+                // The three planes that meet at the steepest angles give the point; the fourth
+                // must pass through it too, or the cell holds more than one feature.
+                double best = -1;
+                int left = 3;
+                for (int out = 0; out < 4; ++out) {
+                    int t[3], m = 0;
+                    for (int q = 0; q < 4; ++q)
+                        if (q != out) t[m++] = face[q];
+                    const double det = std::fabs(dot(n[t[0]], cross(n[t[1]], n[t[2]])));
+                    if (det > best) best = det, left = out;
+                }
+                std::swap(face[left], face[3]);
+            }
+            const Vec3d planes[3] = {n[face[0]], n[face[1]], n[face[2]]};
+            const double rhs[3] = {dot(planes[0], c[face[0]]), dot(planes[1], c[face[1]]), dot(planes[2], c[face[2]])};
             Vec3d corner;
-            if (!intersectPlanes(planes, rhs, corner) || !isCornerOf(nearestNode(frame, corner), cc.cell)) {
+            if (!intersectPlanes(planes, rhs, corner) || !nearCell(nearestNode(frame, corner), cc.cell) ||
+                (l >= 0 && std::fabs(dot(n[face[3]], corner - c[face[3]])) > kMaxFaceBend * h)) {
                 ++local.rejected;
                 return false;
             }
@@ -433,15 +458,36 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             p.node = nearestNode(frame, corner);
             p.point = corner;
             p.distance = length(corner - frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z())));
-            p.inside = insideAt(p.node);
-            // The solid behind a corner is probed at one angle to its three faces (n · d = 1 for
-            // each: d points out of the solid's cone, whatever the corner's shape). Their normals'
-            // sum can point out of an acute corner: at a shallow pyramid's base corner, through
-            // the base, and the corner was rejected.
-            Vec3d behind;
+            p.inside = isCornerOf(p.node, cc.cell) && insideAt(p.node); // (else: set below)
+            // The solid behind a corner is probed at one angle to its faces (n · d = 1 for three:
+            // d points out of the solid's cone, whatever the corner's shape). Their normals' sum
+            // can point out of an acute corner: at a shallow pyramid's base corner, through the
+            // base, and the corner was rejected. At four faces, of the four triples' directions
+            // (and the sum) the one farthest from every face's plane.
             const double ones[3] = {1, 1, 1};
-            if (!intersectPlanes(planes, ones, behind)) behind = n[i] + n[j] + n[k];
-            return record(p, FieldCheck{{c[i], c[j], c[k]}, 3, behind}, defer);
+            Vec3d behind = planes[0] + planes[1] + planes[2];
+            if (l < 0) {
+                Vec3d d;
+                if (intersectPlanes(planes, ones, d)) behind = d;
+            } else {
+                auto leastAngle = [&](const Vec3d& d) {
+                    double m = INFINITY;
+                    for (int f : face) m = std::min(m, dot(n[f], d));
+                    return m / length(d);
+                };
+                behind += n[face[3]];
+                double best = leastAngle(behind);
+                for (int out = 0; out < 4; ++out) {
+                    Vec3d triple[3], d;
+                    int m = 0;
+                    for (int q = 0; q < 4; ++q)
+                        if (q != out) triple[m++] = n[face[q]];
+                    if (!intersectPlanes(triple, ones, d)) continue;
+                    const double a = leastAngle(d);
+                    if (a > best) best = a, behind = d;
+                }
+            }
+            return record(p, FieldCheck{{c[face[0]], c[face[1]], c[face[2]]}, 3, behind}, defer);
         };
         // The edge where the planes of crossings i and j meet, placed along the line at `along`
         // (a point whose projection fixes where on the line the cell is): the cell corner whose
@@ -492,6 +538,15 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const double d = std::fabs(dot(n[i], edgeDir));
             if (d > phi) phi = d, third = i;
         }
+        // A fourth face through the corner (an apex of four faces: a pyramid's or an octahedron's)
+        // shows as crossings whose normals agree with none of the three; the first of them stands
+        // for it, and the corner is proposed from all four.
+        int fourth = -1;
+        if (third >= 0)
+            for (int i = 0; i < count && fourth < 0; ++i)
+                if (dot(n[i], n[a]) < kFaceNormalAgreement && dot(n[i], n[b]) < kFaceNormalAgreement &&
+                    dot(n[i], n[third]) < kFaceNormalAgreement)
+                    fourth = i;
         // Every crossing's normal must agree with a defining crossing's (else: curvature). Whether
         // it also lies on that plane (within kMaxFaceBend) tells what normals cannot: two parallel
         // faces less than a cell apart (a notch's floor and the face it is cut into), so two
@@ -500,7 +555,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         bool normalsAgree = true, onPlanes = true;
         for (int i = 0; i < count; ++i) {
             bool agrees = false, on = false;
-            for (int k : {a, b, third}) {
+            for (int k : {a, b, third, fourth}) {
                 if (k < 0 || dot(n[i], n[k]) < kFaceNormalAgreement) continue;
                 agrees = true;
                 on = on || liesOn(i, k);
@@ -530,7 +585,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // Most cells (all on a curved or noisy surface) stop at one proposal, whose field checks
         // wait until a neighbour confirms it; a cell that may hold two features needs them now.
         const bool alone = onPlanes || planes > kMaxPlanes || planes == count;
-        const bool proposed = third >= 0 ? proposeCorner(a, b, third, alone) : proposeEdge(a, b, mean / double(count), alone);
+        const bool proposed =
+            third >= 0 ? proposeCorner(a, b, third, alone, fourth) : proposeEdge(a, b, mean / double(count), alone);
         if (!proposed || alone) return;
         // Then every other corner three of the planes make is proposed (or, if none, every edge
         // two make): where the proposal above passed, the cell holds a true feature and its
@@ -579,6 +635,17 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return s == kPassed;
     };
     std::vector<Proposal> all = confirmedByNeighbours(recorded.size(), proposal, h, passes);
+    {
+        // A corner whose node is not one of its cell's corners takes the node's side from the
+        // lattice as the thin search left it (a cell's case tells only its own corners).
+        NodeStates states(deformation);
+        for (Proposal& p : all) {
+            if (isCornerOf(p.node, p.cell)) continue;
+            double rest = 0;
+            field.sampleNodes(frame, Vec3i(p.node.x(), p.node.y(), p.node.z()), {1, 1, 1}, nullptr, &rest);
+            p.inside = states.inside(p.node, isInside(rest, iso, side));
+        }
+    }
     // (Each proposal not kept was rejected once: by its field checks or for want of a second view.)
     out.rejected += recorded.size() - all.size();
     tbb::parallel_sort(all.begin(), all.end());

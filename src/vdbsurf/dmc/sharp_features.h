@@ -16,6 +16,10 @@
 //   holding such a pair proposes nothing (the normals of a rod or plate turn as fast as at an
 //   edge); nor does a feature with less than 2 cells of solid behind it (along the mean of its
 //   faces' outward normals), which would pinch a thin part into beads or cut a rod in two;
+// - a corner is three planes, or four through one point (an apex of four faces: the fourth's
+//   normals would otherwise read as curvature); its node may be a corner of one of the 26 cells
+//   around (an acute tip pokes into a cell that sees only two of its faces), and then takes its
+//   side from the lattice, not from the proposing cell's case;
 // - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
 //   the field and its gradient) exceeds a fifth of a cell, is rejected;
 // - an edge stands only where another cell nearby proposes a point on its line, or a tangent
