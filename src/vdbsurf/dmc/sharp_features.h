@@ -14,8 +14,9 @@
 // Rules the paper leaves open, chosen so that the result does not depend on thread order:
 // - normal pairs that are nearly opposite are two sheets of a thin part, not an edge, and a cell
 //   holding such a pair proposes nothing (the normals of a rod or plate turn as fast as at an
-//   edge); nor does a feature with less than 2 cells of solid behind it (along the mean of its
-//   faces' outward normals), which would pinch a thin part into beads or cut a rod in two;
+//   edge); nor does a feature with less than 2 cells of solid behind it (an edge: along the mean
+//   of its faces' outward normals; a corner: at one angle to its faces), which would pinch a thin
+//   part into beads or cut a rod in two;
 // - a corner is three planes, or four through one point (an apex of four faces: the fourth's
 //   normals would otherwise read as curvature); its node may be a corner of one of the 26 cells
 //   around (an acute tip pokes into a cell that sees only two of its faces), and then takes its
