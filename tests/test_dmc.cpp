@@ -201,6 +201,19 @@ Mesh randomCrackLevelSetAtH(unsigned seed, int trial, double width, MeshReport& 
     return dmcAtH(field, report);
 }
 
+// A frame rotated by R and moved by c, as formula text: its local coordinates, and boxes in them.
+struct FormulaFrame {
+    std::string l[3];
+    FormulaFrame(const Rotation& R, const Vec3d& c) {
+        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+    }
+    // The box of half extents b around p, as the largest of its slabs' distances.
+    std::string box(double px, double py, double pz, double bx, double by, double bz) const {
+        return "max(max(abs(" + l[0] + "-" + num(px) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(py) + ")-" + num(by) + "),abs(" + l[2] +
+               "-" + num(pz) + ")-" + num(bz) + ")";
+    }
+};
+
 } // namespace
 
 TEST_CASE("thin plates, rods and shells from a fifth of a cell to a cell wide are kept, closed, in one piece") {
@@ -565,8 +578,8 @@ TEST_CASE("square pyramids lower than steep, at random orientations, keep their 
         const Rotation R = eulerRotation(angle(rng), angle(rng), angle(rng));
         const Vec3d c(shift(rng), shift(rng), shift(rng));
         const double h = spacing(rng), a = halfSide(rng), height = a * slope(rng), s = std::sqrt(height * height + a * a);
-        std::string l[3];
-        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+        const FormulaFrame frame(R, c);
+        const auto& l = frame.l;
         const std::string f = "max((" + num(height) + "*abs" + l[0] + "+" + num(a) + "*" + l[2] + "-" + num(a * height) + ")/" + num(s) + ", (" +
                               num(height) + "*abs" + l[1] + "+" + num(a) + "*" + l[2] + "-" + num(a * height) + ")/" + num(s) + ", -" + l[2] + ")";
         ExpressionField field(f, box);
@@ -616,8 +629,8 @@ TEST_CASE("octahedra at random orientations keep the apexes where four faces mee
         const Rotation R = eulerRotation(angle(rng), angle(rng), angle(rng));
         const Vec3d c(shift(rng), shift(rng), shift(rng));
         const double h = spacing(rng), r = radius(rng);
-        std::string l[3];
-        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+        const FormulaFrame frame(R, c);
+        const auto& l = frame.l;
         const std::string f = "(abs" + l[0] + "+abs" + l[1] + "+abs" + l[2] + "-" + num(r) + ")*" + num(1 / std::sqrt(3.0));
         std::vector<Vec3d> apexes;
         for (int k = 0; k < 6; ++k) {
@@ -649,8 +662,8 @@ TEST_CASE("regular tetrahedra at random orientations keep their acute tips") {
         const Rotation R = eulerRotation(angle(rng), angle(rng), angle(rng));
         const Vec3d c(shift(rng), shift(rng), shift(rng));
         const double h = spacing(rng), d = inradius(rng);
-        std::string l[3];
-        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+        const FormulaFrame frame(R, c);
+        const auto& l = frame.l;
         std::string f = "max(";
         std::vector<Vec3d> tips;
         for (const Vec3d& n : normals) {
@@ -710,8 +723,8 @@ struct NotchedCube {
     double notch;
 
     std::string formula() const {
-        std::string l[3];
-        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
+        const FormulaFrame frame(R, c);
+        const auto& l = frame.l;
         return "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-1, " + num(notch) + "-max(abs(" + l[0] + "-1),abs(" + l[1] +
                "-1),abs(" + l[2] + "-1)))";
     }
@@ -732,19 +745,6 @@ struct NotchedCube {
 };
 
 const Box3 kNotchBox{{-2, -2, -2}, {2, 2, 2}};
-
-// A frame rotated by R and moved by c, as formula text: its local coordinates, and boxes in them.
-struct FormulaFrame {
-    std::string l[3];
-    FormulaFrame(const Rotation& R, const Vec3d& c) {
-        for (int i = 0; i < 3; ++i) l[i] = dotWith(Vec3d(R[0][i], R[1][i], R[2][i]), c);
-    }
-    // The box of half extents b around p, as the largest of its slabs' distances.
-    std::string box(double px, double py, double pz, double bx, double by, double bz) const {
-        return "max(max(abs(" + l[0] + "-" + num(px) + ")-" + num(bx) + ",abs(" + l[1] + "-" + num(py) + ")-" + num(by) + "),abs(" + l[2] +
-               "-" + num(pz) + ")-" + num(bz) + ")";
-    }
-};
 
 } // namespace
 

@@ -27,7 +27,6 @@ namespace {
 
 using openvdb::math::NonlinearFrustumMap;
 
-
 // Points whose depth factor (the frustum's scale across its axis, relative to the near plane's)
 // is below this are taken as behind the apex: their preimage is a voxel thousands of times wider
 // than the near plane's, or none.
