@@ -260,7 +260,7 @@ Action addMeshCommand(CLI::App& app) {
         ->check(CLI::Range(1, 64));
     sub->add_option("--sharp-edge", o->sharpEdge, "DMC: normals whose cosine is below this make an edge (default 0.9)")
         ->check(CLI::Range(-1.0, 1.0));
-    sub->add_option("--sharp-corner", o->sharpCorner, "DMC: a third normal this aligned with the edge makes a corner (default 0.7)")
+    sub->add_option("--sharp-corner", o->sharpCorner, "DMC: a third normal this aligned with the edge makes a corner (default 0.7; down to 0.45 of it where the corner's edges show on the surface)")
         ->check(CLI::Range(0.0, 1.0));
     sub->add_option("--sharp-noise", o->sharpNoise,
                     "DMC, a grid at its own voxel size: lattice leaves where at least this share of the surface cells may hold "

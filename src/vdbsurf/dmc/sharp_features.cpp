@@ -75,10 +75,23 @@ constexpr double kConfirmAlong = 0.3;
 // thick, curving 7 cells around, gains false edges by it (mean distance 0.036 -> 0.039 H).
 constexpr double kCurvedEdgeCosine = 0.85;
 constexpr double kCurvedEdgeReach = 2.0;
+// A third face that meets the edge of the other two at a shallow angle (φ below --sharp-corner,
+// down to this share of it) makes a corner too where it is a plane of its own (its normal agrees
+// with neither), where at least two of the corner's three edge lines lie on the surface
+// kShallowEdgeReach cells from it (within kShallowEdgeBend cells), and where another cell's edge
+// runs through the point. The paper's φ test alone turns such corners into edges, cut off by up
+// to 0.6 H: a chamfered box's (φ 0.58), a pyramid's base corners below a height of its half base
+// (φ = h / √(h² + a²)), an octagonal or finer prism's rim (sin 2π/m). Where faces merely curve
+// (noisy fog, a blob curving about a cell), tangent planes meet at such angles in many cells:
+// with the confirmation alone, smoke_fog at a voxel of 1 had 2.5 times its corners (46 -> 116),
+// with edges probed one cell out 2 times, two cells out 1.1 times.
+constexpr double kShallowCornerShare = 0.45;
+constexpr double kShallowEdgeReach = 2.0, kShallowEdgeBend = 0.05;
 
 struct Proposal {
     Coord node;
     int kind = 0; // 0 corner, 1 edge: corners win
+    bool needsEdge = false; // a shallow corner (kShallowCornerShare): kept where another cell's edge runs through it
     double distance = 0;
     Coord cell;
     Vec3d point;
@@ -157,7 +170,9 @@ double distanceToLine(const Vec3d& q, const Vec3d& p, const Vec3d& dir) {
 // a line share the face crossings that made it, so a point beside this one is no second view.
 // Corners stand without confirmation: three faces seen at once in one cell are rare on curved
 // surfaces (39 of 81,570 cells of the smoke file), and a short notch's corner may have no
-// neighbour that sees its edges. Only proposals whose field checks pass (passes(i)) count, on
+// neighbour that sees its edges. A shallow corner (needsEdge) is not rare there: it stands where
+// another cell's edge line passes through it, from at least kConfirmAlong away (one of its edges
+// seen again), and confirms no edge itself. Only proposals whose field checks pass (passes(i)) count, on
 // either side; the checks are asked for only where the geometry confirms, so most proposals of a
 // noisy surface never need them. Order kept; decided in parallel, the result does not depend on
 // the threads.
@@ -166,6 +181,7 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
     struct Seen { // what a confirming proposal needs, packed and ordered by cell
         Coord cell;
         int kind;
+        bool needsEdge;
         Vec3d point, direction;
         std::size_t index;
     };
@@ -176,13 +192,16 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
         for (std::size_t i = r.begin(); i < r.end(); ++i) {
             const Proposal& p = at(i);
-            seen[i] = {p.cell, p.kind, p.point, p.direction, i};
+            seen[i] = {p.cell, p.kind, p.needsEdge, p.point, p.direction, i};
         }
     });
     tbb::parallel_sort(seen.begin(), seen.end(), [](const Seen& x, const Seen& y) { return x.cell < y.cell; });
     const double tolerance = kOnConfirmedLine * h;
     auto confirms = [&](const Seen& q, const Seen& p) {
-        if (q.kind == 0) return distanceToLine(q.point, p.point, p.direction) <= tolerance; // the edge may end there
+        if (p.kind == 0) // a shallow corner, by an edge through it
+            return q.kind == 1 && distanceToLine(p.point, q.point, q.direction) <= tolerance &&
+                   std::fabs(dot(p.point - q.point, q.direction)) >= kConfirmAlong * h;
+        if (q.kind == 0) return !q.needsEdge && distanceToLine(q.point, p.point, p.direction) <= tolerance; // the edge may end there
         const Vec3d d = q.point - p.point;
         if (std::fabs(dot(d, p.direction)) < kConfirmAlong * h) return false;
         if (distanceToLine(q.point, p.point, p.direction) <= tolerance) return true; // one straight edge
@@ -207,7 +226,7 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
         for (std::size_t s = r.begin(); s < r.end(); ++s) {
             const Seen& p = seen[s];
             const std::size_t i = p.index;
-            if (p.kind == 0) {
+            if (p.kind == 0 && !p.needsEdge) {
                 keep[i] = passes(i);
                 continue;
             }
@@ -424,9 +443,21 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             recorded.push_back({p, defer ? check : FieldCheck(), defer ? kUnchecked : kPassed});
             return true;
         };
+        // Do the lines where the faces of a shallow corner meet lie on the surface two cells from
+        // it, to one side or the other? On a true corner each is an edge (unless shorter), or,
+        // where the three faces are of a four-face apex, all but the line of its two opposite
+        // faces; where faces merely curve, the tangent planes' lines leave the surface.
+        auto edgesOnSurface = [&](const Vec3d& corner, const int* face) {
+            int on = 0;
+            for (int u = 0; u < 3; ++u) {
+                const Vec3d e = normalized(cross(n[face[u]], n[face[(u + 1) % 3]])) * (kShallowEdgeReach * h);
+                on += within(corner + e, kShallowEdgeBend) || within(corner - e, kShallowEdgeBend);
+            }
+            return on >= 2;
+        };
         // A corner where the planes of crossings i, j, k meet (and l's, if l >= 0: an apex of four
         // faces, as an octahedron's), for the cell corner nearest it.
-        auto proposeCorner = [&](int i, int j, int k, bool defer, int l = -1) {
+        auto proposeCorner = [&](int i, int j, int k, bool defer, int l = -1, bool shallow = false) {
             ++local.cornerCells;
             int face[4] = {i, j, k, l};
             if (l >= 0) {
@@ -451,10 +482,15 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 ++local.rejected;
                 return false;
             }
+            if (shallow && !edgesOnSurface(corner, face)) {
+                ++local.rejected;
+                return false;
+            }
             Proposal p;
             p.cell = cc.cell;
             p.config = cc.config;
             p.kind = 0;
+            p.needsEdge = shallow;
             p.node = nearestNode(frame, corner);
             p.point = corner;
             p.distance = length(corner - frame.nodeWorld(Vec3i(p.node.x(), p.node.y(), p.node.z())));
@@ -538,6 +574,16 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             const double d = std::fabs(dot(n[i], edgeDir));
             if (d > phi) phi = d, third = i;
         }
+        // Else a shallow corner: a third plane of its own (kShallowCornerShare).
+        bool shallow = false;
+        if (third < 0) {
+            double least = kShallowCornerShare * options.cornerThreshold;
+            for (int i = 0; i < count; ++i) {
+                if (i == a || i == b || dot(n[i], n[a]) >= kFaceNormalAgreement || dot(n[i], n[b]) >= kFaceNormalAgreement) continue;
+                const double d = std::fabs(dot(n[i], edgeDir));
+                if (d >= least) least = d, third = i, shallow = true;
+            }
+        }
         // A fourth face through the corner (an apex of four faces: a pyramid's or an octahedron's)
         // shows as crossings whose normals agree with none of the three; the first of them stands
         // for it, and the corner is proposed from all four.
@@ -585,6 +631,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // Most cells (all on a curved or noisy surface) stop at one proposal, whose field checks
         // wait until a neighbour confirms it; a cell that may hold two features needs them now.
         const bool alone = onPlanes || planes > kMaxPlanes || planes == count;
+        // A shallow corner waits for its confirmation. (Without it the cell has no feature: its
+        // third plane's normals agree with neither of the edge's.)
+        if (shallow) {
+            proposeCorner(a, b, third, true, fourth, true);
+            return;
+        }
         const bool proposed =
             third >= 0 ? proposeCorner(a, b, third, alone, fourth) : proposeEdge(a, b, mean / double(count), alone);
         if (!proposed || alone) return;
