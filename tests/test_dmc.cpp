@@ -685,9 +685,8 @@ TEST_CASE("chamfered boxes, fine prisms and low pyramids at random orientations 
     // under the paper's corner threshold (|n · e| 0.7): a chamfer's corners (0.58), an octagonal
     // to 12-sided prism's rim (0.71-0.5), a pyramid's base corners below a height of one
     // half-side. They came out as edges, cut off by up to 0.6 H: 3 of these 45 shapes were whole,
-    // 144 of their 720 corners kept. Now such a corner stands where two of its edge lines lie on
-    // the surface two cells out and another cell's edge runs through it (40 whole, 692 kept; a
-    // chamfer's edges shorter than two cells lose some: probed one cell out, 41 and 712).
+    // 144 of their 720 corners kept. Now such a corner stands where the surface around it lies on
+    // its three planes and another cell's edge runs through it (41 whole, 712 kept).
     std::mt19937 rng(17);
     std::uniform_real_distribution<double> angle(0, 2 * kPi), spacing(0.1, 0.2), shift(-0.1, 0.1), unit(0, 1);
     int whole = 0, shapes = 0;
@@ -737,16 +736,17 @@ TEST_CASE("chamfered boxes, fine prisms and low pyramids at random orientations 
         ++shapes;
     }
     INFO(whole << " of " << shapes << " shapes whole, " << kept << " of " << corners << " corners");
-    CHECK(whole >= shapes - 6);
-    CHECK(kept * 20 >= corners * 19);
+    CHECK(whole >= shapes - 5);
+    CHECK(kept * 50 >= corners * 49);
 }
 
 TEST_CASE("a blob curving about a cell gets few shallow corners") {
     // A sphere with bumps whose tops curve about a cell: three tangent planes of a cell there meet
     // at shallow angles near the surface, as a chamfer's faces do, and another cell's tangent
-    // line often runs through the point. What tells them apart is farther out: the lines where
-    // the planes meet leave the surface two cells from the point (30 corners in 2,468 cells with
-    // surface; 6 before shallow corners; with the lines probed one cell out, 51).
+    // line often runs through the point. What tells them apart is farther out: the faces between
+    // the lines where the planes meet leave the surface a cell and a half from the point (6
+    // corners in 2,468 cells with surface, as before shallow corners; with the lines probed a cell
+    // out and the faces not, 51).
     const std::string f = "sqrt(x^2+y^2+z^2)+0.2*sin(7*x)*sin(7*y)*sin(7*z)-1";
     ExpressionField field(f, Box3{{-2, -2, -2}, {2, 2, 2}});
     MeshRequest req;
@@ -755,7 +755,7 @@ TEST_CASE("a blob curving about a cell gets few shallow corners") {
     const Mesh m = meshField(field, req, rep);
     requireClosed(m);
     INFO(rep.nodesOnCorners << " nodes on corners, " << rep.nodesOnEdges << " on edges, " << rep.cellsWithSurface << " cells with surface");
-    CHECK(rep.nodesOnCorners * 60 <= rep.cellsWithSurface);
+    CHECK(rep.nodesOnCorners * 200 <= rep.cellsWithSurface);
 }
 
 TEST_CASE("a tetrahedral cavity keeps a concave tip whose node is a neighbouring cell's corner") {

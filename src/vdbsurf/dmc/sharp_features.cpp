@@ -77,16 +77,18 @@ constexpr double kCurvedEdgeCosine = 0.85;
 constexpr double kCurvedEdgeReach = 2.0;
 // A third face that meets the edge of the other two at a shallow angle (φ below --sharp-corner,
 // down to this share of it) makes a corner too where it is a plane of its own (its normal agrees
-// with neither), where at least two of the corner's three edge lines lie on the surface
-// kShallowEdgeReach cells from it (within kShallowEdgeBend cells), and where another cell's edge
-// runs through the point. The paper's φ test alone turns such corners into edges, cut off by up
-// to 0.6 H: a chamfered box's (φ 0.58), a pyramid's base corners below a height of its half base
-// (φ = h / √(h² + a²)), an octagonal or finer prism's rim (sin 2π/m). Where faces merely curve
-// (noisy fog, a blob curving about a cell), tangent planes meet at such angles in many cells:
-// with the confirmation alone, smoke_fog at a voxel of 1 had 2.5 times its corners (46 -> 116),
-// with edges probed one cell out 2 times, two cells out 1.1 times.
+// with neither), where the surface around the point lies on the three planes — at least two of
+// the lines where they meet on it a cell out (within kShallowEdgeBend cells), and each face
+// between two such lines kShallowFaceReach cells out (within kShallowFaceBend) — and where
+// another cell's edge runs through the point. The paper's φ test alone turns such corners into
+// edges, cut off by up to 0.6 H: a chamfered box's (φ 0.58), a pyramid's base corners below a
+// height of its half base (φ = h / √(h² + a²)), an octagonal or finer prism's rim (sin 2π/m).
+// Where faces merely curve (noisy fog, a blob curving about a cell), tangent planes meet at such
+// angles in many cells: with the confirmation alone, smoke_fog at a voxel of 1 had 2.5 times its
+// corners (46 -> 116), with the lines probed a cell out (within 0.1 cells) but not the faces 93,
+// with both as below 47.
 constexpr double kShallowCornerShare = 0.45;
-constexpr double kShallowEdgeReach = 2.0, kShallowEdgeBend = 0.05;
+constexpr double kShallowEdgeBend = 0.05, kShallowFaceReach = 1.5, kShallowFaceBend = 0.1;
 
 struct Proposal {
     Coord node;
@@ -443,17 +445,29 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             recorded.push_back({p, defer ? check : FieldCheck(), defer ? kUnchecked : kPassed});
             return true;
         };
-        // Do the lines where the faces of a shallow corner meet lie on the surface two cells from
-        // it, to one side or the other? On a true corner each is an edge (unless shorter), or,
-        // where the three faces are of a four-face apex, all but the line of its two opposite
-        // faces; where faces merely curve, the tangent planes' lines leave the surface.
-        auto edgesOnSurface = [&](const Vec3d& corner, const int* face) {
-            int on = 0;
+        // Does a shallow corner's neighbourhood lie on its three planes: the lines where two meet
+        // on the surface a cell from it (to one side: the edge), and each face a cell and a half
+        // out between its two edges? One line may miss: where the three faces are of a four-face
+        // apex (a low pyramid's), two of them are opposite and meet at the point alone. Where
+        // faces merely curve, the tangent planes and their lines leave the surface that far out.
+        auto facesAround = [&](const Vec3d& corner, const int* face) {
+            Vec3d e[3];
+            bool edge[3];
+            int edges = 0;
             for (int u = 0; u < 3; ++u) {
-                const Vec3d e = normalized(cross(n[face[u]], n[face[(u + 1) % 3]])) * (kShallowEdgeReach * h);
-                on += within(corner + e, kShallowEdgeBend) || within(corner - e, kShallowEdgeBend);
+                e[u] = normalized(cross(n[face[u]], n[face[(u + 1) % 3]]));
+                edge[u] = true;
+                if (within(corner + e[u] * h, kShallowEdgeBend)) { ++edges; continue; }
+                e[u] = -e[u];
+                if (within(corner + e[u] * h, kShallowEdgeBend)) { ++edges; continue; }
+                edge[u] = false;
             }
-            return on >= 2;
+            if (edges < 2) return false;
+            for (int u = 0; u < 3; ++u) // face u lies between edges u and u + 2
+                if (edge[u] && edge[(u + 2) % 3] &&
+                    !within(corner + normalized(e[u] + e[(u + 2) % 3]) * (kShallowFaceReach * h), kShallowFaceBend))
+                    return false;
+            return true;
         };
         // A corner where the planes of crossings i, j, k meet (and l's, if l >= 0: an apex of four
         // faces, as an octahedron's), for the cell corner nearest it.
@@ -482,7 +496,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 ++local.rejected;
                 return false;
             }
-            if (shallow && !edgesOnSurface(corner, face)) {
+            if (shallow && !facesAround(corner, face)) {
                 ++local.rejected;
                 return false;
             }

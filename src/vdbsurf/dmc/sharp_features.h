@@ -22,9 +22,10 @@
 //   around (an acute tip pokes into a cell that sees only two of its faces), and then takes its
 //   side from the lattice, not from the proposing cell's case;
 // - a third plane of its own below the corner threshold (down to 0.45 of it: a chamfer's corner,
-//   a fine prism's rim, a low pyramid's base) makes a corner where two of the three edge lines
-//   lie on the surface two cells out and another cell's edge runs through the point, else no
-//   feature (tangent planes of a surface curving about a cell meet so too);
+//   a fine prism's rim, a low pyramid's base) makes a corner where the surface around the point
+//   lies on the three planes (the lines where they meet a cell out, the faces between them a cell
+//   and a half out) and another cell's edge runs through the point, else no feature (tangent
+//   planes of a surface curving about a cell meet so too);
 // - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
 //   the field and its gradient) exceeds a fifth of a cell, is rejected;
 // - an edge stands only where another cell nearby proposes a point on its line, or a tangent
