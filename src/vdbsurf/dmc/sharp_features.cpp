@@ -463,10 +463,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 edge[u] = false;
             }
             if (edges < 2) return false;
-            for (int u = 0; u < 3; ++u) // face u lies between edges u and u + 2
-                if (edge[u] && edge[(u + 2) % 3] &&
-                    !within(corner + normalized(e[u] + e[(u + 2) % 3]) * (kShallowFaceReach * h), kShallowFaceBend))
-                    return false;
+            for (int u = 0; u < 3; ++u) { // face u lies between edges u and u + 2
+                if (!edge[u] || !edge[(u + 2) % 3]) continue;
+                const Vec3d between = e[u] + e[(u + 2) % 3];
+                if (dot(between, between) < 1e-6) return false; // (edges in line: no face between)
+                if (!within(corner + normalized(between) * (kShallowFaceReach * h), kShallowFaceBend)) return false;
+            }
             return true;
         };
         // A corner where the planes of crossings i, j, k meet (and l's, if l >= 0: an apex of four
