@@ -476,16 +476,19 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         auto proposeCorner = [&](int i, int j, int k, bool defer, int l = -1, bool shallow = false) {
             ++local.cornerCells;
             int face[4] = {i, j, k, l};
+            auto normalsBut = [&](int out, Vec3d* t) { // the normals of the four faces but face[out]
+                for (int q = 0, m = 0; q < 4; ++q)
+                    if (q != out) t[m++] = n[face[q]];
+            };
             if (l >= 0) {
                 // The three planes that meet at the steepest angles give the point; the fourth
                 // must pass through it too, or the cell holds more than one feature.
                 double best = -1;
                 int left = 3;
                 for (int out = 0; out < 4; ++out) {
-                    int t[3], m = 0;
-                    for (int q = 0; q < 4; ++q)
-                        if (q != out) t[m++] = face[q];
-                    const double det = std::fabs(dot(n[t[0]], cross(n[t[1]], n[t[2]])));
+                    Vec3d t[3];
+                    normalsBut(out, t);
+                    const double det = std::fabs(dot(t[0], cross(t[1], t[2])));
                     if (det > best) best = det, left = out;
                 }
                 std::swap(face[left], face[3]);
@@ -531,9 +534,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 double best = leastAngle(behind);
                 for (int out = 0; out < 4; ++out) {
                     Vec3d triple[3], d;
-                    int m = 0;
-                    for (int q = 0; q < 4; ++q)
-                        if (q != out) triple[m++] = n[face[q]];
+                    normalsBut(out, triple);
                     if (!intersectPlanes(triple, ones, d)) continue;
                     const double a = leastAngle(d);
                     if (a > best) best = a, behind = d;
