@@ -8,6 +8,7 @@
 #include "vdbsurf/dmc/edge_runs.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
+#include "vdbsurf/dmc/sampled_planes.h"
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
 
@@ -20,6 +21,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <tuple>
 
 namespace vdbsurf {
@@ -365,8 +367,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     struct Local {
         std::uint64_t edgeCells = 0, cornerCells = 0, rejected = 0;
         Vec3d c[12], n[12]; // one cell's crossings and normals (here: not cleared for every cell)
+        SampledPlanes::Scratch planes;
     };
     tbb::enumerable_thread_specific<Local> locals;
+    // On a grid meshed coarser than its voxels, crossings near a kink take their face's normal.
+    std::optional<SampledPlanes> sampledPlanes;
+    if (SampledPlanes::appliesTo(field, frame)) sampledPlanes.emplace(field, frame, iso);
     auto within = [&](const Vec3d& p, double cells) {
         Vec3d g;
         const double v = field.valueAndGradient(p, g);
@@ -410,18 +416,30 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             c[count] = Vec3d(cc.position[e]);
             n[count++] = ne;
         }
+        // The two most different normals (an edge, if below the edge threshold), and whether two
+        // are nearly opposite.
         int a = -1, b = -1;
-        double theta = options.edgeThreshold;
         bool twoSheets = false;
-        for (int i = 0; i < count; ++i)
-            for (int j = i + 1; j < count; ++j) {
-                const double d = dot(n[i], n[j]);
-                if (d < theta) {
-                    const Vec3d x = cross(n[i], n[j]);
-                    if (dot(x, x) >= kMinSine * kMinSine) theta = d, a = i, b = j;
+        auto findEdge = [&] {
+            a = b = -1;
+            twoSheets = false;
+            double theta = options.edgeThreshold;
+            for (int i = 0; i < count; ++i)
+                for (int j = i + 1; j < count; ++j) {
+                    const double d = dot(n[i], n[j]);
+                    if (d < theta) {
+                        const Vec3d x = cross(n[i], n[j]);
+                        if (dot(x, x) >= kMinSine * kMinSine) theta = d, a = i, b = j;
+                    }
+                    twoSheets = twoSheets || d <= -kOppositeSheets;
                 }
-                twoSheets = twoSheets || d <= -kOppositeSheets;
-            }
+        };
+        findEdge();
+        // (Sampling the faces around costs far more than the cell's own test: only where it shows
+        // a feature.)
+        if (a >= 0 && !twoSheets && sampledPlanes &&
+            sampledPlanes->snap(Vec3i(cc.cell.x(), cc.cell.y(), cc.cell.z()), c, n, count, local.planes) > 0)
+            findEdge();
         if (a < 0) return;
         // Two sheets facing away from each other within one cell: a thin part (rod, plate)
         // passes here, and what its curvature makes of the normals is no feature. A node placed

@@ -26,6 +26,10 @@
 //   lies on the three planes (the lines where they meet a cell out, the faces between them a cell
 //   and a half out) and another cell's edge runs through the point, else no feature (tangent
 //   planes of a surface curving about a cell meet so too);
+// - on a grid meshed at 2.5 voxels a cell or more, a cell that shows a feature first gives each
+//   crossing the normal of the flat face it lies on, found among samples of the cells around
+//   (sampled_planes.h): the grid's own normals blend the faces within a voxel and a half of a
+//   kink, which is most of a corner cell's crossings;
 // - a point outside the cell's neighbourhood, or whose distance to the surface (estimated from
 //   the field and its gradient) exceeds a fifth of a cell, is rejected;
 // - an edge stands only where another cell nearby proposes a point on its line, or a tangent

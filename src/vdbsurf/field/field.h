@@ -122,6 +122,9 @@ public:
 
     // Lattice spacing when the user gives none (a grid's own voxel size), if the field has one.
     virtual std::optional<double> naturalSpacing() const { return std::nullopt; }
+    // The spacing of the samples the field interpolates (a grid's voxel size), if it is not an
+    // exact function: its gradient blends the faces at a kink over a few samples.
+    virtual std::optional<double> sampleSpacing() const { return std::nullopt; }
     // Where lattice nodes should sit for spacing h (a grid's voxel centres when h is a multiple).
     virtual LatticeFrame naturalFrame(double h) const { return {domain().min, h}; }
     // The frame to mesh in where it is not world space (see OwnFrame); null: world space.

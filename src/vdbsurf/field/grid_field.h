@@ -28,6 +28,7 @@ public:
     Box3 domain() const override;
     std::string describe() const override { return mLabel; }
     std::optional<double> naturalSpacing() const override;
+    std::optional<double> sampleSpacing() const override { return naturalSpacing(); }
     LatticeFrame naturalFrame(double h) const override;
     // Where the grid's axes are not world's (rotated, mirrored, sheared or unequal voxels, or a
     // frustum): the grid in index space scaled by its smallest voxel size, so that a lattice at
