@@ -116,19 +116,19 @@ int SampledPlanes::snap(const Vec3i& cell, const Vec3d* c, Vec3d* n, int count, 
         if (cluster == kMaxClusters) break;
         const std::size_t seed = std::size_t(candidate.second);
         if (s.face[seed] >= 0) continue;
+        s.members.clear();
         Vec3d sum, centroid;
-        int k = 0;
         for (std::size_t j = 0; j < m; ++j)
-            if (s.face[j] < 0 && tight(seed, j)) sum += nn[j], centroid += p[j], ++k;
+            if (s.face[j] < 0 && tight(seed, j)) sum += nn[j], centroid += p[j], s.members.push_back(j);
+        const double k = double(s.members.size());
         if (k < kMinSupport) continue;
         const Vec3d normal = normalized(sum);
-        centroid = centroid / double(k);
+        centroid = centroid / k;
         // The samples' spread across the plane: the smaller eigenvalue of their 2x2 covariance.
         const Vec3d u = normalized(std::fabs(normal.x) < 0.6 ? cross(normal, Vec3d(1, 0, 0)) : cross(normal, Vec3d(0, 1, 0)));
         const Vec3d w = cross(normal, u);
         double uu = 0, uw = 0, ww = 0;
-        for (std::size_t j = 0; j < m; ++j) {
-            if (s.face[j] >= 0 || !tight(seed, j)) continue;
+        for (const std::size_t j : s.members) {
             const Vec3d q = p[j] - centroid;
             const double a = dot(u, q), b = dot(w, q);
             uu += a * a, uw += a * b, ww += b * b;

@@ -53,6 +53,7 @@ struct SampledPlanes::Scratch {
     std::vector<double> values;
     std::vector<Vec3d> points, normals;
     std::vector<int> face;
+    std::vector<std::size_t> members; // of the cluster being formed
     std::vector<std::pair<int, int>> order; // (-support, sample)
 };
 
