@@ -182,7 +182,7 @@ public:
             bool eighth[8] = {true, true, true, true, true, true, true, true};
             for (int k = 0; k < 8 && mSubdivide; ++k) {
                 const Vec3d sub = lo + Vec3d(k & 1 ? mH / 4 : 0, k & 2 ? mH / 4 : 0, k & 4 ? mH / 4 : 0);
-                eighth[k] = mayBeOtherSide(nodeInside, mField.bounds(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}), mIso, mSide);
+                eighth[k] = mField.mayHoldOtherSide(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}, nodeInside, mIso);
             }
             collectOctant(centre, d, eighth, mid, nodeInside, evaluated, found);
         }
@@ -200,7 +200,7 @@ public:
         thread_local std::vector<Vec3d> own;
         own.clear();
         for (int d = 0; d < 8; ++d)
-            if (mayBeOtherSide(!inside, mField.bounds(octantBox(centre, d)), mIso, mSide))
+            if (mField.mayHoldOtherSide(octantBox(centre, d), !inside, mIso))
                 collectOctant(centre, d, kEvery, centre, !inside, evaluated, own);
         if (own.empty()) return std::nullopt;
         Vec3d mean;

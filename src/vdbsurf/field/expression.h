@@ -16,13 +16,14 @@ namespace vdbsurf {
 enum class ExprOp : std::uint8_t {
     Const, X, Y, Z,
     Add, Sub, Mul, Div, Pow, Neg,
+    PowInt, // a power by a small whole constant (arg: the exponent as a signed 32-bit value)
     Abs, Sqrt, Exp, Log, Sin, Cos, Tan,
     Min, Max, Clamp
 };
 
 struct ExprInstr {
     ExprOp op;
-    std::uint32_t arg = 0; // constant index for Const, argument count for Min/Max
+    std::uint32_t arg = 0; // constant index for Const, argument count for Min/Max, exponent for PowInt
 };
 
 // Evaluators keep their stack in a fixed array; the parser refuses formulas that need more.
@@ -43,7 +44,18 @@ ExprProgram parseExpression(const std::string& text, const std::string& input = 
 double evalValue(const ExprProgram& prog, const Vec3d& p);
 // Value and gradient (forward-mode automatic differentiation).
 double evalGradient(const ExprProgram& prog, const Vec3d& p, Vec3d& gradient);
-// Conservative bounds of the formula over the closed box (outward-rounded interval arithmetic).
+
+// Conservative bounds of the formula over the closed box, with outward rounding:
+// - natural: every operation on intervals. Exact for one use of each variable, but a variable
+//   used twice is treated as two independent ones, so x^2 + y^2 + z^2 - (a·p)^2 (a spike's or a
+//   cylinder's squared radius) over a cell a few units from the origin spans a whole unit where
+//   the formula varies by a cell's worth: wide enough that most cells of a CSG formula look as
+//   if the surface could pass through them, and the thin search samples them all;
+// - evalBounds: at every step also the mean value form f(c) + Σ ∂f/∂x_i (box) · (x_i − c_i), c
+//   the box's centre, the partial derivatives bounded over the box by interval forward-mode
+//   differentiation, and the intersection of the two kept. Its width shrinks with the box's, so
+//   a cell's bounds follow the formula's variation over the cell. Holds the natural bounds.
+Interval evalNaturalBounds(const ExprProgram& prog, const Box3& box);
 Interval evalBounds(const ExprProgram& prog, const Box3& box);
 
 } // namespace vdbsurf

@@ -1,14 +1,17 @@
-// One stack machine, three number types: double (values), Dual (value + gradient) and a
-// Boost.Interval type with outward rounding (bounds). Any step whose interval result is
-// undefined (e.g. 0 * inf, an empty domain) widens to the whole real line, which keeps the bounds
-// conservative; the point evaluation then reports the undefined value itself.
+// One stack machine, four number types: double (values), Dual (value + gradient), a Boost.Interval
+// type with outward rounding (natural bounds) and an interval with interval partial derivatives
+// (the centred form's derivative bounds). Any step whose interval result is undefined (e.g.
+// 0 * inf, an empty domain) widens to the whole real line, which keeps the bounds conservative;
+// the point evaluation then reports the undefined value itself.
 #include "vdbsurf/field/expression.h"
 
 #include <boost/numeric/interval.hpp>
 
-#include <array>
 #include <cmath>
+#include <cstddef>
 #include <limits>
+#include <new>
+#include <type_traits>
 
 namespace vdbsurf {
 
@@ -26,6 +29,16 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 bool isIntegerConstant(double v) { return std::isfinite(v) && v == std::nearbyint(v) && std::fabs(v) < 1e9; }
 
+// a^n by repeated squaring (a^2 is one correctly rounded product); a negative n divides once.
+double wholePower(double a, int n) {
+    double r = 1, b = a;
+    for (unsigned m = n < 0 ? 0u - unsigned(n) : unsigned(n); m; m >>= 1) {
+        if (m & 1u) r *= b;
+        if (m > 1) b *= b;
+    }
+    return n < 0 ? 1 / r : r;
+}
+
 // ---- double -------------------------------------------------------------------------------
 struct ScalarOps {
     using T = double;
@@ -36,6 +49,7 @@ struct ScalarOps {
     static T mul(T a, T b) { return a * b; }
     static T div(T a, T b) { return a / b; }
     static T pow(T a, T b) { return std::pow(a, b); }
+    static T powInt(T a, int n) { return wholePower(a, n); }
     static T neg(T a) { return -a; }
     static T abs(T a) { return std::fabs(a); }
     static T sqrt(T a) { return std::sqrt(a); }
@@ -66,6 +80,7 @@ struct DualOps {
     static T sub(const T& a, const T& b) { return {a.v - b.v, a.d - b.d}; }
     static T mul(const T& a, const T& b) { return {a.v * b.v, a.d * b.v + b.d * a.v}; }
     static T div(const T& a, const T& b) { return {a.v / b.v, (a.d * b.v - b.d * a.v) / (b.v * b.v)}; }
+    static T powInt(const T& a, int n) { return {wholePower(a.v, n), a.d * (n == 0 ? 0.0 : n * wholePower(a.v, n - 1))}; }
     static T pow(const T& a, const T& b) {
         if (b.d == Vec3d() && isIntegerConstant(b.v)) {
             const double n = b.v;
@@ -126,12 +141,12 @@ struct IntervalOps {
         if (b.lower() == 0.0 && b.upper() == 0.0) return whole();
         return fix(a / b);
     }
+    static T powInt(const T& a, int n) {
+        if (n < 0 && boost::numeric::in_zero(a)) return whole();
+        return fix(boost::numeric::pow(a, n));
+    }
     static T pow(const T& a, const T& b) {
-        if (boost::numeric::singleton(b) && isIntegerConstant(b.lower())) {
-            const int n = int(b.lower());
-            if (n < 0 && boost::numeric::in_zero(a)) return whole();
-            return fix(boost::numeric::pow(a, n));
-        }
+        if (boost::numeric::singleton(b) && isIntegerConstant(b.lower())) return powInt(a, int(b.lower()));
         // Real exponent: defined only for a >= 0 (points with a < 0 evaluate to NaN and are reported).
         if (a.upper() < 0.0) return whole();
         const T pos(std::max(a.lower(), 0.0), a.upper());
@@ -171,66 +186,240 @@ struct IntervalOps {
     static T max(const T& a, const T& b) { return T(std::max(a.lower(), b.lower()), std::max(a.upper(), b.upper())); }
 };
 
+// ---- centred bounds: an interval with the formula's value at the box's centre and interval
+// partial derivatives, tightened at every step -------------------------------------------------
+// Every step's result is bounded two ways over the box: by its operands' bounds (natural
+// interval arithmetic), and by the mean value form f(c) + Σ ∂f/∂x_i · (x_i − c_i), with f(c) from
+// the operands' values at the centre and the partial derivatives bounded over the box; it keeps
+// the intersection. So the value interval that a later step's derivative reads is the tight one
+// too: the squared radius q = x² + y² + z² − (a·p)² of a spike a unit from the origin is, over a
+// cell, q(c) ± a cell's worth, not q(c) ± a unit, and √q's derivative 1/(2√q) stays bounded
+// wherever the cell is off the spike's axis. At a kink of min, max or abs inside the box, both
+// sides' derivatives count (the generalized gradient of a Lipschitz function lies in their
+// hull); where a derivative is unbounded (sqrt or log at 0, a pole, a division by an interval
+// holding 0) it is the whole line and the step keeps its natural bounds.
+struct Centred {
+    BInterval v;  // over the box
+    BInterval at; // at the box's centre
+    BInterval d[3];
+};
+
+class CentredOps {
+public:
+    using T = Centred;
+    using I = IntervalOps;
+    // halfWidth[i]: |x_i − c_i| at most, over the box.
+    explicit CentredOps(const double* halfWidth) : mHalfWidth{halfWidth[0], halfWidth[1], halfWidth[2]} {}
+
+    T constant(double c) const { return {BInterval(c), BInterval(c), {BInterval(0.0), BInterval(0.0), BInterval(0.0)}}; }
+    T var(const T& x, int axis) const {
+        T r{x.v, x.at, {BInterval(0.0), BInterval(0.0), BInterval(0.0)}};
+        r.d[axis] = BInterval(1.0);
+        return r;
+    }
+    T add(const T& a, const T& b) const {
+        return tight({I::add(a.v, b.v), I::add(a.at, b.at), {I::add(a.d[0], b.d[0]), I::add(a.d[1], b.d[1]), I::add(a.d[2], b.d[2])}});
+    }
+    T sub(const T& a, const T& b) const {
+        return tight({I::sub(a.v, b.v), I::sub(a.at, b.at), {I::sub(a.d[0], b.d[0]), I::sub(a.d[1], b.d[1]), I::sub(a.d[2], b.d[2])}});
+    }
+    T mul(const T& a, const T& b) const {
+        // A constant factor (a formula's coefficients): its derivatives are zero.
+        if (constantIn(b)) return scaled(a, b.v, b.at);
+        if (constantIn(a)) return scaled(b, a.v, a.at);
+        T r{I::mul(a.v, b.v), I::mul(a.at, b.at), {}};
+        for (int i = 0; i < 3; ++i) r.d[i] = I::add(I::mul(a.d[i], b.v), I::mul(a.v, b.d[i]));
+        return tight(r);
+    }
+    T div(const T& a, const T& b) const {
+        T r{I::div(a.v, b.v), I::div(a.at, b.at), {}};
+        if (boost::numeric::in_zero(b.v)) return unbounded(r);
+        // (a' − (a/b)·b') / b: every point's quotient rule, with a/b taken from its bounds.
+        for (int i = 0; i < 3; ++i) r.d[i] = I::div(I::sub(a.d[i], I::mul(r.v, b.d[i])), b.v);
+        return tight(r);
+    }
+    T powInt(const T& a, int n) const {
+        if (n == 0) return constant(1.0);
+        if (n == 1) return a;
+        if (n == 2) return chain(I::powInt(a.v, 2), I::powInt(a.at, 2), I::add(a.v, a.v), a);
+        return chain(I::powInt(a.v, n), I::powInt(a.at, n), I::mul(BInterval(double(n)), I::powInt(a.v, n - 1)), a);
+    }
+    T pow(const T& a, const T& b) const {
+        if (boost::numeric::singleton(b.v) && isIntegerConstant(b.v.lower()) && constantIn(b)) return powInt(a, int(b.v.lower()));
+        T r{I::pow(a.v, b.v), I::pow(a.at, b.at), {}};
+        if (!(a.v.lower() > 0.0)) return unbounded(r);
+        // a^b = exp(b log a): (a^b)' = a^b (b' log a + b a'/a).
+        const BInterval logA = I::log(a.v);
+        for (int i = 0; i < 3; ++i) r.d[i] = I::mul(r.v, I::add(I::mul(b.d[i], logA), I::mul(b.v, I::div(a.d[i], a.v))));
+        return tight(r);
+    }
+    T neg(const T& a) const { return {-a.v, -a.at, {-a.d[0], -a.d[1], -a.d[2]}}; }
+    T abs(const T& a) const {
+        if (a.v.lower() >= 0.0) return a;
+        if (a.v.upper() <= 0.0) return neg(a);
+        return tight({I::abs(a.v), I::abs(a.at), {hull(a.d[0], -a.d[0]), hull(a.d[1], -a.d[1]), hull(a.d[2], -a.d[2])}});
+    }
+    T sqrt(const T& a) const {
+        const BInterval r = I::sqrt(a.v), at = I::sqrt(a.at);
+        if (constantIn(a)) return {r, at, {a.d[0], a.d[1], a.d[2]}};
+        if (!(a.v.lower() > 0.0)) return unbounded({r, at, {}});
+        return chain(r, at, I::div(BInterval(0.5), r), a);
+    }
+    T exp(const T& a) const {
+        const BInterval r = I::exp(a.v);
+        return chain(r, I::exp(a.at), r, a);
+    }
+    T log(const T& a) const {
+        const BInterval r = I::log(a.v), at = I::log(a.at);
+        if (!(a.v.lower() > 0.0)) return unbounded({r, at, {}});
+        return chain(r, at, I::div(BInterval(1.0), a.v), a);
+    }
+    T sin(const T& a) const { return chain(I::sin(a.v), I::sin(a.at), I::cos(a.v), a); }
+    T cos(const T& a) const { return chain(I::cos(a.v), I::cos(a.at), -I::sin(a.v), a); }
+    T tan(const T& a) const {
+        const BInterval r = I::tan(a.v);
+        return chain(r, I::tan(a.at), I::add(BInterval(1.0), I::mul(r, r)), a);
+    }
+    // One side throughout the box, or both sides' derivatives where the box holds the kink.
+    T min(const T& a, const T& b) const {
+        if (a.v.upper() < b.v.lower()) return a;
+        if (b.v.upper() < a.v.lower()) return b;
+        return tight({I::min(a.v, b.v), I::min(a.at, b.at), {hull(a.d[0], b.d[0]), hull(a.d[1], b.d[1]), hull(a.d[2], b.d[2])}});
+    }
+    T max(const T& a, const T& b) const {
+        if (a.v.lower() > b.v.upper()) return a;
+        if (b.v.lower() > a.v.upper()) return b;
+        return tight({I::max(a.v, b.v), I::max(a.at, b.at), {hull(a.d[0], b.d[0]), hull(a.d[1], b.d[1]), hull(a.d[2], b.d[2])}});
+    }
+
+private:
+    double mHalfWidth[3];
+
+    static BInterval hull(const BInterval& a, const BInterval& b) {
+        return BInterval(std::min(a.lower(), b.lower()), std::max(a.upper(), b.upper()));
+    }
+    static bool constantIn(const T& a) {
+        for (const BInterval& d : a.d)
+            if (d.lower() != 0.0 || d.upper() != 0.0) return false;
+        return true;
+    }
+    static T unbounded(T r) {
+        for (BInterval& d : r.d) d = I::whole();
+        return r;
+    }
+    // a·k for a constant k (bounds kv over the box, kc at the centre): linear, so the mean value
+    // form of the product is k times a's and tightens nothing a's own did not.
+    T scaled(const T& a, const BInterval& kv, const BInterval& kc) const {
+        return {I::mul(a.v, kv), I::mul(a.at, kc), {I::mul(a.d[0], kv), I::mul(a.d[1], kv), I::mul(a.d[2], kv)}};
+    }
+    // Value r over the box and rc at the centre; each derivative s·a.d[i] (the chain rule through
+    // a function of one argument whose derivative over the box is s).
+    T chain(const BInterval& r, const BInterval& rc, const BInterval& s, const T& a) const {
+        return tight({r, rc, {I::mul(s, a.d[0]), I::mul(s, a.d[1]), I::mul(s, a.d[2])}});
+    }
+    // The step's bounds intersected with its mean value form, at ± Σ |∂f/∂x_i| w_i (each x_i − c_i
+    // lies within ± w_i). Those hold the exact values; a value computed at a point carries its
+    // own rounding, which a long sum of large terms makes far larger than an ulp of the result:
+    // `at`, the same operations on the centre, is as wide as that rounding there, so the form is
+    // widened by it (and by a few ulps of the result, where `at` happens to be exact). Rounding is
+    // upward, so every sum and product here is rounded outwards; lo − r rounds down as −(r − lo).
+    T tight(T r) const {
+        tighten(r);
+        return r;
+    }
+    void tighten(T& r) const {
+        double reach = 0;
+        for (int i = 0; i < 3; ++i) reach += std::max(-r.d[i].lower(), r.d[i].upper()) * mHalfWidth[i];
+        const double atLo = r.at.lower(), atHi = r.at.upper();
+        reach += 4 * (atHi - atLo) + (std::max(-atLo, atHi) + reach) * 0x1p-48;
+        if (!(reach < kInf)) return; // an unbounded derivative, or a NaN
+        const double lo = std::max(r.v.lower(), -(reach - atLo)), hi = std::min(r.v.upper(), atHi + reach);
+        if (lo <= hi) r.v = BInterval(lo, hi);
+    }
+};
+
 template <typename Ops>
-typename Ops::T run(const ExprProgram& prog, const typename Ops::T& x, const typename Ops::T& y,
+typename Ops::T run(const Ops& ops, const ExprProgram& prog, const typename Ops::T& x, const typename Ops::T& y,
                     const typename Ops::T& z) {
     using T = typename Ops::T;
-    std::array<T, kMaxStack + 1> stack;
+    // The stack as raw storage, each slot constructed when pushed (and only assigned to while it
+    // is on the stack, never destroyed): the number types' default constructors would otherwise
+    // zero all kMaxStack slots (8 KB for a dual number) at every evaluation, most of which a
+    // formula never reaches.
+    static_assert(std::is_trivially_destructible_v<T>);
+    alignas(T) std::byte storage[sizeof(T) * (kMaxStack + 1)];
+    T* const stack = reinterpret_cast<T*>(storage);
     int top = -1;
+    auto push = [&](const T& v) { new (stack + ++top) T(v); };
     for (const ExprInstr& in : prog.code) {
         switch (in.op) {
-        case ExprOp::Const: stack[std::size_t(++top)] = Ops::constant(prog.constants[in.arg]); break;
-        case ExprOp::X: stack[std::size_t(++top)] = Ops::var(x, 0); break;
-        case ExprOp::Y: stack[std::size_t(++top)] = Ops::var(y, 1); break;
-        case ExprOp::Z: stack[std::size_t(++top)] = Ops::var(z, 2); break;
-        case ExprOp::Add: --top; stack[top] = Ops::add(stack[top], stack[top + 1]); break;
-        case ExprOp::Sub: --top; stack[top] = Ops::sub(stack[top], stack[top + 1]); break;
-        case ExprOp::Mul: --top; stack[top] = Ops::mul(stack[top], stack[top + 1]); break;
-        case ExprOp::Div: --top; stack[top] = Ops::div(stack[top], stack[top + 1]); break;
-        case ExprOp::Pow: --top; stack[top] = Ops::pow(stack[top], stack[top + 1]); break;
-        case ExprOp::Neg: stack[top] = Ops::neg(stack[top]); break;
-        case ExprOp::Abs: stack[top] = Ops::abs(stack[top]); break;
-        case ExprOp::Sqrt: stack[top] = Ops::sqrt(stack[top]); break;
-        case ExprOp::Exp: stack[top] = Ops::exp(stack[top]); break;
-        case ExprOp::Log: stack[top] = Ops::log(stack[top]); break;
-        case ExprOp::Sin: stack[top] = Ops::sin(stack[top]); break;
-        case ExprOp::Cos: stack[top] = Ops::cos(stack[top]); break;
-        case ExprOp::Tan: stack[top] = Ops::tan(stack[top]); break;
+        case ExprOp::Const: push(ops.constant(prog.constants[in.arg])); break;
+        case ExprOp::X: push(ops.var(x, 0)); break;
+        case ExprOp::Y: push(ops.var(y, 1)); break;
+        case ExprOp::Z: push(ops.var(z, 2)); break;
+        case ExprOp::Add: --top; stack[top] = ops.add(stack[top], stack[top + 1]); break;
+        case ExprOp::Sub: --top; stack[top] = ops.sub(stack[top], stack[top + 1]); break;
+        case ExprOp::Mul: --top; stack[top] = ops.mul(stack[top], stack[top + 1]); break;
+        case ExprOp::Div: --top; stack[top] = ops.div(stack[top], stack[top + 1]); break;
+        case ExprOp::Pow: --top; stack[top] = ops.pow(stack[top], stack[top + 1]); break;
+        case ExprOp::PowInt: stack[top] = ops.powInt(stack[top], int(std::int32_t(in.arg))); break;
+        case ExprOp::Neg: stack[top] = ops.neg(stack[top]); break;
+        case ExprOp::Abs: stack[top] = ops.abs(stack[top]); break;
+        case ExprOp::Sqrt: stack[top] = ops.sqrt(stack[top]); break;
+        case ExprOp::Exp: stack[top] = ops.exp(stack[top]); break;
+        case ExprOp::Log: stack[top] = ops.log(stack[top]); break;
+        case ExprOp::Sin: stack[top] = ops.sin(stack[top]); break;
+        case ExprOp::Cos: stack[top] = ops.cos(stack[top]); break;
+        case ExprOp::Tan: stack[top] = ops.tan(stack[top]); break;
         case ExprOp::Min:
         case ExprOp::Max: {
             const int n = int(in.arg);
-            T acc = stack[std::size_t(top - n + 1)];
-            for (int i = top - n + 2; i <= top; ++i)
-                acc = in.op == ExprOp::Min ? Ops::min(acc, stack[std::size_t(i)]) : Ops::max(acc, stack[std::size_t(i)]);
+            T acc = stack[top - n + 1];
+            for (int i = top - n + 2; i <= top; ++i) acc = in.op == ExprOp::Min ? ops.min(acc, stack[i]) : ops.max(acc, stack[i]);
             top -= n - 1;
-            stack[std::size_t(top)] = acc;
+            stack[top] = acc;
             break;
         }
         case ExprOp::Clamp:
             top -= 2;
-            stack[top] = Ops::min(Ops::max(stack[top], stack[top + 1]), stack[top + 2]);
+            stack[top] = ops.min(ops.max(stack[top], stack[top + 1]), stack[top + 2]);
             break;
         }
     }
     return stack[0];
 }
 
+Interval toInterval(const BInterval& r) {
+    if (boost::numeric::empty(r) || std::isnan(r.lower()) || std::isnan(r.upper())) return Interval{};
+    return Interval{r.lower(), r.upper()};
+}
+
 } // namespace
 
-double evalValue(const ExprProgram& prog, const Vec3d& p) { return run<ScalarOps>(prog, p.x, p.y, p.z); }
+double evalValue(const ExprProgram& prog, const Vec3d& p) { return run(ScalarOps{}, prog, p.x, p.y, p.z); }
 
 double evalGradient(const ExprProgram& prog, const Vec3d& p, Vec3d& gradient) {
-    const Dual r = run<DualOps>(prog, Dual{p.x, {}}, Dual{p.y, {}}, Dual{p.z, {}});
+    const Dual r = run(DualOps{}, prog, Dual{p.x, {}}, Dual{p.y, {}}, Dual{p.z, {}});
     gradient = r.d;
     return r.v;
 }
 
-Interval evalBounds(const ExprProgram& prog, const Box3& box) {
+Interval evalNaturalBounds(const ExprProgram& prog, const Box3& box) {
     ProtectedInterval::traits_type::rounding upward; // sets the rounding mode, restores it on return
-    const BInterval r = run<IntervalOps>(prog, BInterval(box.min.x, box.max.x), BInterval(box.min.y, box.max.y),
-                                         BInterval(box.min.z, box.max.z));
-    if (boost::numeric::empty(r) || std::isnan(r.lower()) || std::isnan(r.upper())) return Interval{};
-    return Interval{r.lower(), r.upper()};
+    return toInterval(
+        run(IntervalOps{}, prog, BInterval(box.min.x, box.max.x), BInterval(box.min.y, box.max.y), BInterval(box.min.z, box.max.z)));
+}
+
+Interval evalBounds(const ExprProgram& prog, const Box3& box) {
+    ProtectedInterval::traits_type::rounding upward;
+    const Vec3d c = (box.min + box.max) * 0.5;
+    double halfWidth[3];
+    Centred var[3];
+    for (std::size_t a = 0; a < 3; ++a) {
+        halfWidth[a] = std::max(c[a] - box.min[a], box.max[a] - c[a]); // rounded up
+        var[a] = Centred{BInterval(box.min[a], box.max[a]), BInterval(c[a]), {}};
+    }
+    return toInterval(run(CentredOps(halfWidth), prog, var[0], var[1], var[2]).v);
 }
 
 } // namespace vdbsurf

@@ -16,6 +16,17 @@ ExpressionField::ExpressionField(const std::string& formula, const Box3& box)
     }
 }
 
+bool ExpressionField::mayStraddle(const Box3& box, double iso) const {
+    const Interval natural = evalNaturalBounds(mProgram, box);
+    if (!straddles(natural, iso)) return false;
+    return straddles(evalBounds(mProgram, box), iso);
+}
+
+bool ExpressionField::mayHoldOtherSide(const Box3& box, bool inside, double iso) const {
+    return mayBeOtherSide(inside, evalNaturalBounds(mProgram, box), iso, Inside::Below) &&
+           mayBeOtherSide(inside, evalBounds(mProgram, box), iso, Inside::Below);
+}
+
 Vec3d ExpressionField::gradient(const Vec3d& p) const {
     Vec3d g;
     evalGradient(mProgram, p, g);

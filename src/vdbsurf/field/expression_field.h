@@ -13,6 +13,10 @@ public:
     double value(const Vec3d& p) const override { return evalValue(mProgram, p); }
     Vec3d gradient(const Vec3d& p) const override;
     Interval bounds(const Box3& box) const override { return evalBounds(mProgram, box); }
+    // The natural bounds first: where they already rule the iso value out (most boxes away from
+    // the surface), the derivatives of evalBounds are not needed.
+    bool mayStraddle(const Box3& box, double iso) const override;
+    bool mayHoldOtherSide(const Box3& box, bool inside, double iso) const override;
     bool boundsCheaperThanSamples() const override { return true; }
     Inside inside() const override { return Inside::Below; }
     Box3 domain() const override { return mBox; }

@@ -9,6 +9,7 @@
 #include "vdbsurf/field/expression.h"
 
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <map>
 
@@ -87,13 +88,33 @@ private:
         // Nesting depth bounds both this parser's recursion and the evaluators' fixed stacks.
         if (++mNesting > kMaxNesting) fail(mPos, "the formula nests deeper than " + std::to_string(kMaxNesting) + " levels");
         struct Leave { int& n; ~Leave() { --n; } } leave{mNesting};
-        if (accept('-')) { unary(); emit(ExprOp::Neg, 0, 0); return; }
+        if (accept('-')) {
+            unary();
+            // A negative number is a constant (so that x^-2 is a power by a whole constant too).
+            if (mProg.code.back().op == ExprOp::Const) mProg.constants[mProg.code.back().arg] *= -1;
+            else emit(ExprOp::Neg, 0, 0);
+            return;
+        }
         if (accept('+')) { unary(); return; }
         power();
     }
     void power() {
         primary();
-        if (accept('^')) { unary(); emit(ExprOp::Pow, 0, -1); }
+        if (accept('^')) { unary(); emitPow(); }
+    }
+    // x^2 is the commonest power in a formula (distances): by a small whole constant it is
+    // multiplication, not std::pow (which took 40 % of meshing a CSG formula of 20 spikes).
+    void emitPow() {
+        if (!mProg.code.empty() && mProg.code.back().op == ExprOp::Const) {
+            const double n = mProg.constants[mProg.code.back().arg];
+            if (n == std::nearbyint(n) && std::fabs(n) <= kMaxIntegerPower) {
+                mProg.code.pop_back();
+                --mDepth;
+                emit(ExprOp::PowInt, std::uint32_t(std::int32_t(n)), 0);
+                return;
+            }
+        }
+        emit(ExprOp::Pow, 0, -1);
     }
     void primary() {
         skipSpace();
@@ -156,7 +177,8 @@ private:
                                                               : std::to_string(spec.minArgs) + "-" + std::to_string(spec.maxArgs);
             fail(start, "'" + id + "' takes " + want + " argument" + (want == "1" ? "" : "s") + ", not " + std::to_string(args));
         }
-        emit(spec.op, std::uint32_t(args), 1 - args);
+        if (spec.op == ExprOp::Pow) emitPow();
+        else emit(spec.op, std::uint32_t(args), 1 - args);
     }
 
     const std::string& mText;
@@ -165,6 +187,7 @@ private:
     int mDepth = 0;
     int mNesting = 0;
     static constexpr int kMaxNesting = 200;
+    static constexpr double kMaxIntegerPower = 64;
     ExprProgram mProg;
 };
 

@@ -112,6 +112,11 @@ public:
     // straddles(bounds(box), iso), the same answer, which a field may give sooner (a grid: from
     // the range of the voxels the box reads, before the interpolant's exact range).
     virtual bool mayStraddle(const Box3& box, double iso) const { return straddles(bounds(box), iso); }
+    // mayBeOtherSide(inside, bounds(box), iso, this->inside()), the same answer, which a field
+    // may give sooner (a formula: from its cheaper natural bounds where those suffice).
+    virtual bool mayHoldOtherSide(const Box3& box, bool inside, double iso) const {
+        return mayBeOtherSide(inside, bounds(box), iso, this->inside());
+    }
     virtual Inside inside() const = 0;
     // Outside this box the field is constant, so no surface can be there.
     virtual Box3 domain() const = 0;
