@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <random>
 
 using namespace vdbsurf;
@@ -205,6 +206,31 @@ TEST_CASE("a spike's bounds over a cell beside it leave the surface out, where n
     CHECK(straddlesNow == 0);
     // And a cell the spike passes through still straddles.
     CHECK(straddles(evalBounds(p, Box3{{-0.03, -0.03, 2.0}, {0.045, 0.045, 2.075}}), 0.0));
+}
+
+TEST_CASE("values of many points at once are the single-point values bit for bit") {
+    const std::vector<std::string> formulas = {
+        "min(sqrt(x^2+y^2+z^2)-1, max(sqrt(max(x^2+y^2+z^2-(0.6*x+0.8*z)^2, 0))-0.1*(2.6-(0.6*x+0.8*z)), -(0.6*x+0.8*z)))",
+        "clamp(x*y-z, -0.2, 0.3)*exp(-z^2)+sin(3*y)/(2+cos(x))", "x^-2-y^3+z^5-x^7+pow(abs(y), 1.5)+2^x",
+        "max(x, y, z)-min(x*y, z, 1)+abs(x-y)+log(z)+tan(x)+sqrt(y)"}; // NaN where log or sqrt has no value
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-2, 2);
+    for (const auto& f : formulas) {
+        const ExprProgram p = parseExpression(f);
+        for (std::size_t n : {std::size_t(1), std::size_t(63), std::size_t(64), std::size_t(65), std::size_t(300)}) {
+            std::vector<Vec3d> points(n);
+            for (Vec3d& q : points) q = Vec3d(u(rng), u(rng), u(rng));
+            std::vector<double> many(n);
+            evalValues(p, points.data(), n, many.data());
+            int differ = 0;
+            for (std::size_t i = 0; i < n; ++i) {
+                const double one = evalValue(p, points[i]);
+                differ += std::isnan(one) ? !std::isnan(many[i]) : std::memcmp(&one, &many[i], sizeof one) != 0;
+            }
+            INFO(f << ", " << n << " points");
+            CHECK(differ == 0);
+        }
+    }
 }
 
 TEST_CASE("bounds are tight enough to skip boxes far from the surface") {
