@@ -1743,42 +1743,6 @@ TEST_CASE("a node bridged to a node on the surface, and to nothing else, goes ba
     CHECK(countComponents(dmc) == 2);
 }
 
-namespace {
-// The same formula, but telling the thin search that bounds cost more than samples.
-class WithoutSubdivision final : public Field {
-public:
-    explicit WithoutSubdivision(const Field& f) : mF(f) {}
-    double value(const Vec3d& p) const override { return mF.value(p); }
-    Vec3d gradient(const Vec3d& p) const override { return mF.gradient(p); }
-    Interval bounds(const Box3& box) const override { return mF.bounds(box); }
-    Inside inside() const override { return mF.inside(); }
-    Box3 domain() const override { return mF.domain(); }
-    std::string describe() const override { return mF.describe(); }
-    bool boundsCheaperThanSamples() const override { return false; }
-
-private:
-    const Field& mF;
-};
-} // namespace
-
-TEST_CASE("ruling out eighths of Ω by their bounds before sampling changes no mesh") {
-    for (const char* formula : {"max(sqrt(x^2+y^2+z^2)-0.8, 0.015-abs(0.48*x+0.6*y+0.64*z-0.013))",
-                                "abs(sqrt((x-0.01)^2+(y+0.02)^2+(z-0.03)^2)-0.7)-0.012",
-                                "max(sqrt(max(x^2+y^2+z^2-(0.6*x+0.8*z)^2, 0))-0.01, sqrt(x^2+y^2+z^2)-0.7)"}) {
-        const ExpressionField f(formula, kBox);
-        REQUIRE(f.boundsCheaperThanSamples());
-        const WithoutSubdivision plain(f);
-        MeshRequest req;
-        req.voxelSize = kH;
-        MeshReport withReport, withoutReport;
-        const Mesh with = meshField(f, req, withReport), without = meshField(plain, req, withoutReport);
-        INFO(formula);
-        CHECK(withReport.thinSamples < withoutReport.thinSamples);
-        CHECK(with.points == without.points);
-        CHECK(with.indices == without.indices);
-    }
-}
-
 TEST_CASE("a bowed path never steps over a crack h/k wide, even where the crack lies next to its end") {
     // bentPathJoins tells a crack's slanted wall from a crack between two nodes; a path that
     // stepped over the crack would join the two halves of a ball. A path bowed by b·h leaves its

@@ -135,8 +135,7 @@ void classifyCells(const Field& field, const Lattice& lattice, double iso, const
 class OmegaSearch {
 public:
     OmegaSearch(const Field& field, const Lattice& lattice, double iso, int steps)
-        : mField(field), mLattice(lattice), mIso(iso), mSide(field.inside()), mH(lattice.frame.h),
-          mSubdivide(field.boundsCheaperThanSamples()) {
+        : mField(field), mLattice(lattice), mIso(iso), mSide(field.inside()), mH(lattice.frame.h) {
         const int m = thinSearchSamplesPerAxis(steps);
         const double a = mH / m;
         for (int i = 0; i < m; ++i) {
@@ -172,19 +171,11 @@ public:
                 }
                 if (represented) continue;
             }
-            const Box3 octant = octantBox(centre, d);
-            if (!mField.mayStraddle(octant, mIso)) continue;
-            const Vec3d& lo = octant.min;
-            // The octant's eighths that may hold a value on the other side: samples elsewhere
-            // cannot, so skipping them changes nothing found (and saves most evaluations of costly
-            // formulas, whose bounds over a whole octant are loose).
-            const Vec3d mid = lo + Vec3d(mH / 4, mH / 4, mH / 4);
-            bool eighth[8] = {true, true, true, true, true, true, true, true};
-            for (int k = 0; k < 8 && mSubdivide; ++k) {
-                const Vec3d sub = lo + Vec3d(k & 1 ? mH / 4 : 0, k & 2 ? mH / 4 : 0, k & 4 ? mH / 4 : 0);
-                eighth[k] = mField.mayHoldOtherSide(Box3{sub, sub + Vec3d(mH / 4, mH / 4, mH / 4)}, nodeInside, mIso);
-            }
-            collectOctant(centre, d, eighth, mid, nodeInside, evaluated, found);
+            // (Bounds over the octant's eighths before sampling them paid while a formula's
+            // points cost a few microseconds each; evaluated together they cost less than the
+            // bounds: 20 spikes at 80^3 5.7 -> 3.1 s, the lens 2.9 -> 1.4 s at one thread.)
+            if (!mField.mayStraddle(octantBox(centre, d), mIso)) continue;
+            collectOctant(centre, d, nodeInside, evaluated, found);
         }
         return placeAtCentroid(centre, found, nodeInside);
     }
@@ -196,12 +187,11 @@ public:
     // on one side of a smooth surface through the node: 1, whatever its orientation).
     std::optional<Vec3f> thinOwnSideCentroid(const Coord& n, bool inside, std::uint64_t& evaluated) const {
         const Vec3d centre = mLattice.frame.nodeWorld(Vec3i(n.x(), n.y(), n.z()));
-        static constexpr bool kEvery[8] = {true, true, true, true, true, true, true, true};
         thread_local std::vector<Vec3d> own;
         own.clear();
         for (int d = 0; d < 8; ++d)
             if (mField.mayHoldOtherSide(octantBox(centre, d), !inside, mIso))
-                collectOctant(centre, d, kEvery, centre, !inside, evaluated, own);
+                collectOctant(centre, d, !inside, evaluated, own);
         if (own.empty()) return std::nullopt;
         Vec3d mean;
         for (const Vec3d& p : own) mean += p;
@@ -228,10 +218,9 @@ private:
     }
 
     // Appends to `out` the samples of octant d strictly on the other side from a node whose side
-    // is `from`, of those in the octant's eighths that `eighth` keeps (split at `mid`). Evaluated
-    // together (a grid reads the voxels under the octant once), in the order they are listed.
-    void collectOctant(const Vec3d& centre, int d, const bool* eighth, const Vec3d& mid, bool from, std::uint64_t& evaluated,
-                       std::vector<Vec3d>& out) const {
+    // is `from`. Evaluated together (a grid reads the voxels under the octant once, a formula runs
+    // over them at once), in the order they are listed.
+    void collectOctant(const Vec3d& centre, int d, bool from, std::uint64_t& evaluated, std::vector<Vec3d>& out) const {
         const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
         thread_local std::vector<Vec3d> points;
         thread_local std::vector<double> values;
@@ -239,10 +228,7 @@ private:
         for (int pattern = 0; pattern < 2; ++pattern)
             for (double oz : mAxis[std::size_t(pattern)][std::size_t(dz)])
                 for (double oy : mAxis[std::size_t(pattern)][std::size_t(dy)])
-                    for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) {
-                        const Vec3d p = centre + Vec3d(ox, oy, oz);
-                        if (eighth[(p.x >= mid.x) | (p.y >= mid.y) << 1 | (p.z >= mid.z) << 2]) points.push_back(p);
-                    }
+                    for (double ox : mAxis[std::size_t(pattern)][std::size_t(dx)]) points.push_back(centre + Vec3d(ox, oy, oz));
         values.resize(points.size());
         mField.values(octantBox(centre, d), points.data(), points.size(), values.data());
         evaluated += points.size();
@@ -279,7 +265,6 @@ private:
     double mIso;
     Inside mSide;
     double mH;
-    bool mSubdivide; // rule out eighths of an octant by their bounds before sampling them
     std::array<std::array<std::vector<double>, 2>, 2> mAxis; // [pattern: cubic, centred][half of Ω: below, above]
 };
 

@@ -21,7 +21,6 @@ public:
     // the surface), the derivatives of evalBounds are not needed.
     bool mayStraddle(const Box3& box, double iso) const override;
     bool mayHoldOtherSide(const Box3& box, bool inside, double iso) const override;
-    bool boundsCheaperThanSamples() const override { return true; }
     Inside inside() const override { return Inside::Below; }
     Box3 domain() const override { return mBox; }
     std::string describe() const override { return "--expr \"" + mProgram.source + "\""; }

@@ -164,10 +164,6 @@ public:
         std::fill(out, out + n, std::uint8_t(1));
     }
 
-    // True when a bounds() call over a small box costs less than a few value() calls (a long
-    // formula), so searches may first rule out sub-boxes by their bounds. Only speed depends on it.
-    virtual bool boundsCheaperThanSamples() const { return false; }
-
     // True when, on this frame, the field is linear along every lattice edge, so the crossing
     // on an undeformed edge is plain linear interpolation of the two node values.
     virtual bool edgesAreLinear(const LatticeFrame& frame) const { return false; }
