@@ -187,6 +187,50 @@ TEST_CASE("densities of many points at once equal density() point by point, bit 
     }
 }
 
+TEST_CASE("a scene's values at many points and at lattice nodes equal value() point by point, bit for bit") {
+    // The mesher samples lattice blocks and thin-search octants through values() and
+    // sampleNodes(), and everything else point by point through value(): one surface only if
+    // the two agree in every bit. Blobs, a subtraction, boxes; boxes of points inside, across and
+    // outside the scene; nodes with and without a `needed` mask.
+    std::mt19937 rng(29);
+    std::uniform_real_distribution<double> u(-1, 1), unit(0, 1);
+    std::vector<Primitive> prims = randomBlobs(rng, 300, 0.05, 0.2);
+    prims.push_back(ellipsoid({0.1, 0, 0}, {0.6, 0.3, 0.2}, 0.3, {10, 20, 30}, DensityOp::Subtract));
+    prims.push_back(box({-0.3, 0.2, 0.1}, {0.3, 0.2, 0.25}, 0.2, {0, 35, 10}));
+    const DensityScene scene(prims, "mixed");
+    std::size_t differ = 0, between = 0;
+    for (int b = 0; b < 60; ++b) {
+        const Vec3d c(1.3 * u(rng), 1.3 * u(rng), 1.3 * u(rng));
+        const double half = 0.01 + 0.3 * unit(rng);
+        const Box3 box{c - Vec3d(half, half, half), c + Vec3d(half, half, half)};
+        std::vector<Vec3d> points(1 + b * 7);
+        for (Vec3d& p : points) p = box.min + Vec3d(unit(rng), unit(rng), unit(rng)) * (2 * half);
+        std::vector<double> many(points.size());
+        scene.values(box, points.data(), points.size(), many.data());
+        for (std::size_t i = 0; i < points.size(); ++i) {
+            const double one = scene.value(points[i]);
+            differ += one != many[i];
+            between += one > 0 && one < 1;
+        }
+        const LatticeFrame frame{c, 0.013 + 0.05 * unit(rng)};
+        const Vec3i first(int(8 * u(rng)), int(8 * u(rng)), int(8 * u(rng))), dims(5, 7, 9);
+        std::vector<std::uint8_t> needed(std::size_t(dims.x * dims.y * dims.z));
+        for (auto& n : needed) n = unit(rng) < 0.5;
+        for (const std::uint8_t* mask : {static_cast<const std::uint8_t*>(nullptr), static_cast<const std::uint8_t*>(needed.data())}) {
+            std::vector<double> nodes(needed.size(), -7.0);
+            scene.sampleNodes(frame, first, dims, mask, nodes.data());
+            std::size_t n = 0;
+            for (int k = 0; k < dims.z; ++k)
+                for (int j = 0; j < dims.y; ++j)
+                    for (int i = 0; i < dims.x; ++i, ++n)
+                        differ += mask && !mask[n] ? nodes[n] != -7.0 : nodes[n] != scene.value(frame.nodeWorld(first.x + i, first.y + j, first.z + k));
+        }
+    }
+    INFO(differ << " differ; " << between << " points between 0 and 1");
+    CHECK(differ == 0);
+    CHECK(between > 500);
+}
+
 TEST_CASE("rotated box density: face, edge and corner regions against the closed form") {
     const Vec3d half(0.5, 0.3, 0.2), c(0.2, -0.1, 0.4), rot(20, -35, 50);
     const PreparedPrimitive p(box(c, half, 0.5, rot));
