@@ -1,6 +1,7 @@
 // One stack machine, four number types: double (values), Dual (value + gradient), a Boost.Interval
-// type with outward rounding (natural bounds) and an interval with interval partial derivatives
-// (the centred form's derivative bounds). Any step whose interval result is undefined (e.g.
+// type with outward rounding (natural bounds) and Centred (bounds over a box, the value at its
+// centre and interval partial derivatives: the mean value form's bounds). Values at many points
+// run the same program over chunks of points (runChunk). Any step whose interval result is undefined (e.g.
 // 0 * inf, an empty domain) widens to the whole real line, which keeps the bounds conservative;
 // the point evaluation then reports the undefined value itself.
 #include "vdbsurf/field/expression.h"
@@ -326,17 +327,14 @@ private:
     // widened by it (and by a few ulps of the result, where `at` happens to be exact). Rounding is
     // upward, so every sum and product here is rounded outwards; lo − r rounds down as −(r − lo).
     T tight(T r) const {
-        tighten(r);
-        return r;
-    }
-    void tighten(T& r) const {
         double reach = 0;
         for (int i = 0; i < 3; ++i) reach += std::max(-r.d[i].lower(), r.d[i].upper()) * mHalfWidth[i];
         const double atLo = r.at.lower(), atHi = r.at.upper();
         reach += 4 * (atHi - atLo) + (std::max(-atLo, atHi) + reach) * 0x1p-48;
-        if (!(reach < kInf)) return; // an unbounded derivative, or a NaN
+        if (!(reach < kInf)) return r; // an unbounded derivative, or a NaN
         const double lo = std::max(r.v.lower(), -(reach - atLo)), hi = std::min(r.v.upper(), atHi + reach);
         if (lo <= hi) r.v = BInterval(lo, hi);
+        return r;
     }
 };
 
