@@ -136,6 +136,29 @@ TEST_CASE("mesh writes OBJ, PLY and VDB, says what it chose, and writes stats") 
     CHECK(sj["seconds"].contains("simplify"));
 }
 
+TEST_CASE("mesh says when its float coordinates are too coarse for the cells, far from the origin") {
+    // Every mesh file holds float32 points (as volumeToMesh's are): 200,000 units out they step by
+    // 1/64, a sixth of a 0.1 cell, and geo-referenced data lies there. The same sphere at the
+    // origin gets no such note; both are meshed.
+    test::TempDir dir;
+    auto sphereAt = [&](double x, const std::string& out) {
+        const std::string c = std::to_string(x);
+        return runVdbsurf({"mesh", "--expr", "(x-" + c + ")^2+y^2+z^2-1", "--bbox",
+                           std::to_string(x - 2) + ",-2,-2," + std::to_string(x + 2) + ",2,2", "--voxel-size", "0.1", "-o",
+                           dir.path(out), "--stats", dir.path(out + ".json")});
+    };
+    const auto far = sphereAt(200000, "far.obj"), near = sphereAt(0, "near.obj");
+    INFO(far.output << near.output);
+    REQUIRE(far.exitCode == 0);
+    REQUIRE(near.exitCode == 0);
+    CHECK(far.output.find("float coordinates") != std::string::npos);
+    CHECK(far.output.find("step by 0.015625") != std::string::npos);
+    CHECK(near.output.find("float coordinates") == std::string::npos);
+    const auto j = nlohmann::json::parse(test::readFile(dir.path("far.obj.json")));
+    CHECK(j["coordinates"]["float_step"].get<double>() == 0.015625);
+    CHECK(j["coordinates"]["world_spacing"].get<double>() == Approx(0.1));
+}
+
 TEST_CASE("the same input at 1 and 2 threads gives byte-identical files") {
     test::TempDir dir;
     writeSphereFile(dir.path("s.vdb"), 0.03);

@@ -134,6 +134,12 @@ void runMesh(const MeshOptions& o) {
     Mesh mesh = meshField(*field, req, rep);
     note("iso " + num(rep.iso) + " (" + rep.isoReason + "), lattice spacing " + num(rep.voxelSize) + " (" + rep.voxelSizeReason +
          ")");
+    // Float32 points (every mesh format's, and volumeToMesh's) step by more than 1/64 of a cell
+    // where the mesh lies far from the origin: say so rather than write a coarsened shape unasked.
+    if (rep.coordinateStep > rep.worldSpacing / 64)
+        note("the mesh reaches " + num(rep.farthestCoordinate) + " from the origin, where its float coordinates (those of every " +
+             "mesh file) step by " + num(rep.coordinateStep) + ", " + num(rep.coordinateStep / rep.worldSpacing) +
+             " of a cell: its shape is coarsened by that much; mesh a grid moved nearer the origin (its transform) to keep it");
     if (rep.polygonsWithoutData > 0)
         note("left out " + std::to_string(rep.polygonsWithoutData) + " polygons on inactive voxels alone (the grid's fill, whose " +
              "inside meets its outside where a band ends open; " + std::to_string(rep.cellsWithoutData) + " cells read nothing else)");
@@ -190,6 +196,7 @@ void runMesh(const MeshOptions& o) {
                          {"triangles", rep.triangles},
                          {"quads", rep.quads},
                          {"other_polygons", rep.otherPolygons},
+                         {"coordinates", {{"farthest", rep.farthestCoordinate}, {"float_step", rep.coordinateStep}, {"world_spacing", rep.worldSpacing}}},
                          {"lattice",
                           {{"upper_nodes_tested", rep.upperNodesTested},
                            {"leaf_blocks_tested", rep.leafBlocksTested},

@@ -47,6 +47,17 @@ const char* methodName(MeshMethod m) {
     return "?";
 }
 
+namespace {
+void measureCoordinateStep(const Mesh& mesh, MeshReport& report) {
+    float farthest = 0;
+    for (const Vec3f& p : mesh.points)
+        for (std::size_t a = 0; a < 3; ++a)
+            if (std::isfinite(p[a])) farthest = std::max(farthest, std::fabs(p[a]));
+    report.farthestCoordinate = farthest;
+    report.coordinateStep = double(std::nextafter(farthest, INFINITY)) - double(farthest);
+}
+} // namespace
+
 Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& report) {
     if (const OwnFrame* own = field.ownFrame()) {
         MeshRequest inFrame = request;
@@ -63,6 +74,15 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         if (own->mirrors())
             for (std::size_t f = 0; f < mesh.polygonCount(); ++f)
                 std::reverse(mesh.indices.begin() + mesh.offsets[f], mesh.indices.begin() + mesh.offsets[f + 1]);
+        // The lattice's world spacing: the shortest of a cell's three edges at the frame's origin
+        // (an affine map scales alike everywhere; a frustum's cells widen with depth).
+        if (!mesh.points.empty()) {
+            const Vec3d p = report.frame.origin;
+            const double h = report.frame.h;
+            report.worldSpacing = std::min({length(own->offsetToWorld(p, {h, 0, 0})), length(own->offsetToWorld(p, {0, h, 0})),
+                                            length(own->offsetToWorld(p, {0, 0, h}))});
+        }
+        measureCoordinateStep(mesh, report);
         return mesh;
     }
     if (request.iso) {
@@ -259,6 +279,8 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
                                           messageNumber(report.voxelSize) + " (" + valueRangeText(field) +
                                           "); choose another --iso or a smaller --voxel-size");
     }
+    report.worldSpacing = report.voxelSize;
+    measureCoordinateStep(mesh, report);
     report.vertices = mesh.points.size();
     report.triangles = mesh.countPolygonsOfSize(3);
     report.quads = mesh.countPolygonsOfSize(4);

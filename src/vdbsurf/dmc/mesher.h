@@ -92,6 +92,11 @@ struct MeshReport {
     std::uint64_t fitFeatureCentres = 0;             // of the centres: on sharp edges and corners
     std::uint64_t simplifyRegionTriangles = 0, simplifyCollapses = 0; // thin parts' triangles, vertices removed there
     double secondsLattice = 0, secondsThin = 0, secondsSharp = 0, secondsMesh = 0, secondsFit = 0, secondsSimplify = 0;
+    // A mesh's points are float32 (as every mesh file and volumeToMesh's are): far from the origin
+    // their step is coarse. The largest |coordinate| of the mesh in world units, the step of a
+    // float there, and the lattice spacing in world units near the mesh (a grid's own frame may
+    // scale it): a step above a small share of the spacing coarsens the shape.
+    double farthestCoordinate = 0, coordinateStep = 0, worldSpacing = 0;
     std::size_t vertices = 0, triangles = 0, quads = 0, otherPolygons = 0;
 };
 
