@@ -137,30 +137,6 @@ void DensityScene::values(const Box3& box, const Vec3d* points, std::size_t n, d
     for (std::size_t i = 0; i < n; ++i) out[i] = clampDensity(fromFixed(sums[i]));
 }
 
-void DensityScene::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
-                               double* out) const {
-    thread_local std::vector<Vec3d> points;
-    thread_local std::vector<std::size_t> at;
-    thread_local std::vector<double> sampled;
-    points.clear();
-    at.clear();
-    Box3 box{Vec3d(INFINITY, INFINITY, INFINITY), Vec3d(-INFINITY, -INFINITY, -INFINITY)};
-    std::size_t n = 0;
-    for (int k = 0; k < dims.z; ++k)
-        for (int j = 0; j < dims.y; ++j)
-            for (int i = 0; i < dims.x; ++i, ++n) {
-                if (needed && !needed[n]) continue;
-                const Vec3d p = frame.nodeWorld(first.x + i, first.y + j, first.z + k); // as Field::sampleNodes
-                box = {vmin(box.min, p), vmax(box.max, p)};
-                points.push_back(p);
-                at.push_back(n);
-            }
-    if (points.empty()) return;
-    sampled.resize(points.size());
-    values(box, points.data(), points.size(), sampled.data());
-    for (std::size_t m = 0; m < at.size(); ++m) out[at[m]] = sampled[m];
-}
-
 Vec3d DensityScene::gradient(const Vec3d& p) const {
     const double s = sum(p);
     if (s <= 0 || s >= 1) return {}; // the clamp is flat there

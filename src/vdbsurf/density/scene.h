@@ -54,10 +54,9 @@ public:
 
     double value(const Vec3d& p) const override;
     // value() at many points, bit for bit (sums are exact and order-free), from the primitives
-    // that touch the box once and their batched densities (PreparedPrimitive::densities).
+    // that touch the box once and their batched densities (PreparedPrimitive::densities); lattice
+    // blocks come through it too (Field::sampleNodes).
     void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override;
-    void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
-                     double* out) const override;
     Vec3d gradient(const Vec3d& p) const override;
     Interval bounds(const Box3& box) const override;
     Inside inside() const override { return Inside::Above; }

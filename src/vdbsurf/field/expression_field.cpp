@@ -3,7 +3,6 @@
 #include "vdbsurf/core/error.h"
 
 #include <cmath>
-#include <vector>
 
 namespace vdbsurf {
 
@@ -19,27 +18,6 @@ ExpressionField::ExpressionField(const std::string& formula, const Box3& box)
 
 void ExpressionField::values(const Box3&, const Vec3d* points, std::size_t n, double* out) const {
     evalValues(mProgram, points, n, out);
-}
-
-void ExpressionField::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
-                                  double* out) const {
-    // The needed nodes' points as Field::sampleNodes makes them, evaluated together.
-    thread_local std::vector<Vec3d> points;
-    thread_local std::vector<std::size_t> at;
-    thread_local std::vector<double> values;
-    points.clear();
-    at.clear();
-    std::size_t n = 0;
-    for (int k = 0; k < dims.z; ++k)
-        for (int j = 0; j < dims.y; ++j)
-            for (int i = 0; i < dims.x; ++i, ++n) {
-                if (needed && !needed[n]) continue;
-                points.push_back(frame.nodeWorld(first.x + i, first.y + j, first.z + k));
-                at.push_back(n);
-            }
-    values.resize(points.size());
-    evalValues(mProgram, points.data(), points.size(), values.data());
-    for (std::size_t m = 0; m < at.size(); ++m) out[at[m]] = values[m];
 }
 
 bool ExpressionField::mayStraddle(const Box3& box, double iso) const {

@@ -11,10 +11,9 @@ public:
     ExpressionField(const std::string& formula, const Box3& box);
 
     double value(const Vec3d& p) const override { return evalValue(mProgram, p); }
-    // Many points at once (evalValues): the same values, several times faster.
+    // Many points at once (evalValues): the same values, several times faster; lattice blocks
+    // come through it too (Field::sampleNodes).
     void values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override;
-    void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims, const std::uint8_t* needed,
-                     double* out) const override;
     Vec3d gradient(const Vec3d& p) const override;
     Interval bounds(const Box3& box) const override { return evalBounds(mProgram, box); }
     // The natural bounds first: where they already rule the iso value out (most boxes away from

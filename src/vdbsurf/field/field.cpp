@@ -3,18 +3,41 @@
 #include "vdbsurf/core/error.h"
 
 #include <algorithm>
+#include <cmath>
+#include <vector>
 
 namespace vdbsurf {
 
 void Field::sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
                         const std::uint8_t* needed, double* out) const {
+    // The needed nodes together, through values(): a field that evaluates many points at once
+    // (a formula, a density scene) does so for lattice blocks too. A lone node is one value():
+    // the searches ask for single nodes often, and a batch of one costs more than the point.
+    if (dims.x * dims.y * dims.z == 1) {
+        if (!needed || needed[0]) out[0] = value(frame.nodeWorld(first.x, first.y, first.z));
+        return;
+    }
+    // (Per thread, reused: values() never asks for nodes itself.)
+    thread_local std::vector<Vec3d> points;
+    thread_local std::vector<std::size_t> at;
+    thread_local std::vector<double> sampled;
+    points.clear();
+    at.clear();
+    Box3 box{Vec3d(INFINITY, INFINITY, INFINITY), Vec3d(-INFINITY, -INFINITY, -INFINITY)};
     std::size_t n = 0;
     for (int k = 0; k < dims.z; ++k)
         for (int j = 0; j < dims.y; ++j)
             for (int i = 0; i < dims.x; ++i, ++n) {
                 if (needed && !needed[n]) continue;
-                out[n] = value(frame.nodeWorld(first.x + i, first.y + j, first.z + k));
+                const Vec3d p = frame.nodeWorld(first.x + i, first.y + j, first.z + k);
+                box = {vmin(box.min, p), vmax(box.max, p)};
+                points.push_back(p);
+                at.push_back(n);
             }
+    if (points.empty()) return;
+    sampled.resize(points.size());
+    values(box, points.data(), points.size(), sampled.data());
+    for (std::size_t m = 0; m < at.size(); ++m) out[at[m]] = sampled[m];
 }
 
 std::string valueRangeText(const Field& field) {

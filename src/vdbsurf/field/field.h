@@ -136,8 +136,8 @@ public:
     virtual const OwnFrame* ownFrame() const { return nullptr; }
 
     // Values at the nodes first + (i, j, k), 0 <= i < dims.x ..., x fastest. Only nodes whose
-    // needed[] entry is non-zero must be filled (needed may be null: all). Fields override this
-    // to sample blocks faster than one value() call per node.
+    // needed[] entry is non-zero must be filled (needed may be null: all). By default the needed
+    // nodes go through values() together; a grid overrides this to read its voxels directly.
     virtual void sampleNodes(const LatticeFrame& frame, const Vec3i& first, const Vec3i& dims,
                              const std::uint8_t* needed, double* out) const;
 
