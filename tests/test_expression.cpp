@@ -23,6 +23,27 @@ std::string parseError(const std::string& f) {
     }
     return "";
 }
+
+// A box about `centre` ± centreHalf, its half sides up to 10^(lowest + decades·u) (random draws in
+// a fixed order, so a test sees the same boxes every run).
+Box3 randomBox(std::mt19937& rng, double centreHalf, double lowest, double decades) {
+    std::uniform_real_distribution<double> centre(-centreHalf, centreHalf), unit(0, 1);
+    const double size = std::pow(10.0, lowest + decades * unit(rng));
+    const Vec3d c(centre(rng), centre(rng), centre(rng));
+    const Vec3d half(size * unit(rng), size * unit(rng), size * unit(rng));
+    return {c - half, c + half};
+}
+
+// Sample s of a box: its 8 corners first, then points inside (faces included by the clamp).
+Vec3d pointIn(const Box3& box, int s, std::mt19937& rng) {
+    std::uniform_real_distribution<double> unit(0, 1);
+    Vec3d q;
+    for (std::size_t a = 0; a < 3; ++a) {
+        if (s < 8) q[a] = ((s >> a) & 1) ? box.max[a] : box.min[a];
+        else q[a] = std::clamp(box.min[a] + unit(rng) * (box.max[a] - box.min[a]), box.min[a], box.max[a]);
+    }
+    return q;
+}
 } // namespace
 
 TEST_CASE("formulas evaluate with the usual precedence") {
@@ -103,25 +124,15 @@ TEST_CASE("interval bounds contain every sampled value over random boxes") {
         "(x-y)^2/(1+z^2)", "-x^3+2^y-x*y*z", "sin(40*x*y)+cos(17*z)", "x/y", "log(x*x)", "tan(2*x)", "sqrt(x)",
         "pow(x, y)", "x^-2 - y^-3"};
     std::mt19937 rng(11);
-    std::uniform_real_distribution<double> centre(-2, 2);
-    std::uniform_real_distribution<double> unit(0, 1);
     std::size_t checked = 0;
     for (const auto& f : formulas) {
         const ExprProgram p = parseExpression(f);
         for (int b = 0; b < 60; ++b) {
-            const double size = std::pow(10.0, -3 + 3.5 * unit(rng));
-            const Vec3d c(centre(rng), centre(rng), centre(rng));
-            const Vec3d half(size * unit(rng), size * unit(rng), size * unit(rng));
-            const Box3 box{c - half, c + half};
+            const Box3 box = randomBox(rng, 2, -3, 3.5);
             const Interval iv = evalBounds(p, box);
             REQUIRE(iv.lo <= iv.hi);
             for (int s = 0; s < 120; ++s) {
-                Vec3d q;
-                for (std::size_t a = 0; a < 3; ++a) {
-                    // corners, faces and the interior
-                    if (s < 8) q[a] = ((s >> a) & 1) ? box.max[a] : box.min[a];
-                    else q[a] = std::clamp(box.min[a] + unit(rng) * (box.max[a] - box.min[a]), box.min[a], box.max[a]);
-                }
+                const Vec3d q = pointIn(box, s, rng); // corners, faces and the interior
                 const double v = evalValue(p, q);
                 if (std::isnan(v)) continue; // outside the formula's domain: reported at meshing time
                 INFO(f << " value " << v << " bounds [" << iv.lo << ", " << iv.hi << "]");
@@ -148,16 +159,11 @@ TEST_CASE("bounds of CSG formulas contain every sampled value, and are tighter t
         "x^-2-1/(y^2+0.01)+tan(0.4*z)",
         "max(x^2+y^2+z^2-9, 8.9-x^2-y^2-z^2, y)"};
     std::mt19937 rng(23);
-    std::uniform_real_distribution<double> centre(-2.5, 2.5);
-    std::uniform_real_distribution<double> unit(0, 1);
     std::size_t checked = 0, tighter = 0, coneBoxes = 0;
     for (const auto& f : formulas) {
         const ExprProgram p = parseExpression(f);
         for (int b = 0; b < 150; ++b) {
-            const double size = std::pow(10.0, -3 + 3 * unit(rng));
-            const Vec3d c(centre(rng), centre(rng), centre(rng));
-            const Vec3d half(size * unit(rng), size * unit(rng), size * unit(rng));
-            const Box3 box{c - half, c + half};
+            const Box3 box = randomBox(rng, 2.5, -3, 3);
             const Interval iv = evalBounds(p, box), natural = evalNaturalBounds(p, box);
             REQUIRE(iv.lo <= iv.hi);
             CHECK(iv.lo >= natural.lo);
@@ -167,11 +173,7 @@ TEST_CASE("bounds of CSG formulas contain every sampled value, and are tighter t
                 tighter += iv.hi - iv.lo < 0.5 * (natural.hi - natural.lo);
             }
             for (int s = 0; s < 100; ++s) {
-                Vec3d q;
-                for (std::size_t a = 0; a < 3; ++a) {
-                    if (s < 8) q[a] = ((s >> a) & 1) ? box.max[a] : box.min[a];
-                    else q[a] = std::clamp(box.min[a] + unit(rng) * (box.max[a] - box.min[a]), box.min[a], box.max[a]);
-                }
+                const Vec3d q = pointIn(box, s, rng);
                 const double v = evalValue(p, q);
                 if (std::isnan(v)) continue;
                 INFO(f << " at " << q.x << "," << q.y << "," << q.z << " value " << v << " bounds [" << iv.lo << ", " << iv.hi << "]");
