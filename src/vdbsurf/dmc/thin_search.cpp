@@ -301,9 +301,11 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
     std::sort(joins.begin(), joins.end());
     joins.erase(std::unique(joins.begin(), joins.end()), joins.end());
     auto isJoin = [&](const Coord& c) { return std::binary_search(joins.begin(), joins.end(), c) && nodes.offsets.isValueOn(c); };
-    std::vector<Coord> restore, seen;
+    std::vector<Coord> restore;
+    NodeMaskTree seen; // (a sorted list merged with every piece was quadratic in the joins: 20 k on the lens)
+    openvdb::tree::ValueAccessor<NodeMaskTree> seenAcc(seen);
     for (const Coord& start : joins) {
-        if (!isJoin(start) || !insideNow(start) || std::binary_search(seen.begin(), seen.end(), start)) continue;
+        if (!isJoin(start) || !insideNow(start) || seenAcc.isValueOn(start)) continue;
         std::vector<Coord> piece{start};
         bool anchored = false;
         for (std::size_t i = 0; i < piece.size() && !anchored; ++i)
@@ -313,10 +315,7 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
                 anchored = !isJoin(nb) || piece.size() >= kLargestPiece;
                 piece.push_back(nb);
             }
-        std::sort(piece.begin(), piece.end());
-        std::vector<Coord> merged;
-        std::set_union(seen.begin(), seen.end(), piece.begin(), piece.end(), std::back_inserter(merged));
-        seen.swap(merged);
+        for (const Coord& c : piece) seenAcc.setValueOn(c);
         if (!anchored) restore.insert(restore.end(), piece.begin(), piece.end());
     }
     // A join off the surface whose one inside neighbour lies on it, and has another inside
