@@ -30,11 +30,21 @@ struct ExprInstr {
 // Evaluators keep their stack in a fixed array; the parser refuses formulas that need more.
 constexpr int kMaxStack = 256;
 
+// How a step ends a min's or max's second or later argument (the bounds fold it in there).
+enum class ExprFold : std::uint8_t { None, Min, Max };
+
 struct ExprProgram {
     std::string source;
     std::vector<ExprInstr> code;
     std::vector<double> constants;
     int maxStack = 0;
+    // Per step (parseExpression fills them): where a min's or max's second or later argument
+    // starts, the index of its last step (-1 elsewhere); at that last step, the fold. The bounds
+    // skip such an argument where its natural bounds show it cannot change the min or max.
+    std::vector<std::int32_t> argumentEnd;
+    std::vector<ExprFold> foldAfter;
+    bool skippableArguments = false; // any min or max of two or more arguments
+    std::uint64_t id = 0; // unique to each parse (copies share it): keys evalNaturalBoundsKept's steps
 };
 
 // Parses + - * / ^, unary minus, parentheses, numbers, x y z, pi, and the functions abs, min,
@@ -61,5 +71,13 @@ double evalGradient(const ExprProgram& prog, const Vec3d& p, Vec3d& gradient);
 //   a cell's bounds follow the formula's variation over the cell. Holds the natural bounds.
 Interval evalNaturalBounds(const ExprProgram& prog, const Box3& box);
 Interval evalBounds(const ExprProgram& prog, const Box3& box);
+// The two in stages, for a caller that needs the tight bounds only where the natural ones do not
+// decide: evalNaturalBoundsKept gives evalNaturalBounds' value and keeps every step's natural
+// bounds (in a buffer of the calling thread); evalBoundsAfterNatural then gives evalBounds' value,
+// skipping the min and max arguments that those show cannot be the min or max anywhere in the box
+// (a CSG union of 20 spikes: most of its cones, in most boxes). If the kept steps are of another
+// program or box, it computes them again.
+Interval evalNaturalBoundsKept(const ExprProgram& prog, const Box3& box);
+Interval evalBoundsAfterNatural(const ExprProgram& prog, const Box3& box);
 
 } // namespace vdbsurf

@@ -338,52 +338,104 @@ private:
     }
 };
 
+// One step of the program on the stack (top: its top slot). A min or max of n arguments folds
+// them left to right; with `folded`, each was folded in at its own end (runCentredSkipping) and
+// the step has nothing left to do.
 template <typename Ops>
-typename Ops::T run(const Ops& ops, const ExprProgram& prog, const typename Ops::T& x, const typename Ops::T& y,
-                    const typename Ops::T& z) {
+inline void step(const Ops& ops, const ExprProgram& prog, const ExprInstr& in, typename Ops::T* stack, int& top,
+                 const typename Ops::T& x, const typename Ops::T& y, const typename Ops::T& z, bool folded = false) {
     using T = typename Ops::T;
-    // The stack as raw storage, each slot constructed when pushed (and only assigned to while it
-    // is on the stack, never destroyed): the number types' default constructors would otherwise
-    // zero all kMaxStack slots (8 KB for a dual number) at every evaluation, most of which a
-    // formula never reaches.
+    auto push = [&](const T& v) { new (stack + ++top) T(v); };
+    switch (in.op) {
+    case ExprOp::Const: push(ops.constant(prog.constants[in.arg])); break;
+    case ExprOp::X: push(ops.var(x, 0)); break;
+    case ExprOp::Y: push(ops.var(y, 1)); break;
+    case ExprOp::Z: push(ops.var(z, 2)); break;
+    case ExprOp::Add: --top; stack[top] = ops.add(stack[top], stack[top + 1]); break;
+    case ExprOp::Sub: --top; stack[top] = ops.sub(stack[top], stack[top + 1]); break;
+    case ExprOp::Mul: --top; stack[top] = ops.mul(stack[top], stack[top + 1]); break;
+    case ExprOp::Div: --top; stack[top] = ops.div(stack[top], stack[top + 1]); break;
+    case ExprOp::Pow: --top; stack[top] = ops.pow(stack[top], stack[top + 1]); break;
+    case ExprOp::PowInt: stack[top] = ops.powInt(stack[top], int(std::int32_t(in.arg))); break;
+    case ExprOp::Neg: stack[top] = ops.neg(stack[top]); break;
+    case ExprOp::Abs: stack[top] = ops.abs(stack[top]); break;
+    case ExprOp::Sqrt: stack[top] = ops.sqrt(stack[top]); break;
+    case ExprOp::Exp: stack[top] = ops.exp(stack[top]); break;
+    case ExprOp::Log: stack[top] = ops.log(stack[top]); break;
+    case ExprOp::Sin: stack[top] = ops.sin(stack[top]); break;
+    case ExprOp::Cos: stack[top] = ops.cos(stack[top]); break;
+    case ExprOp::Tan: stack[top] = ops.tan(stack[top]); break;
+    case ExprOp::Min:
+    case ExprOp::Max: {
+        if (folded) break;
+        const int n = int(in.arg);
+        T acc = stack[top - n + 1];
+        for (int i = top - n + 2; i <= top; ++i) acc = in.op == ExprOp::Min ? ops.min(acc, stack[i]) : ops.max(acc, stack[i]);
+        top -= n - 1;
+        stack[top] = acc;
+        break;
+    }
+    case ExprOp::Clamp:
+        top -= 2;
+        stack[top] = ops.min(ops.max(stack[top], stack[top + 1]), stack[top + 2]);
+        break;
+    }
+}
+
+// The stack as raw storage, each slot constructed when pushed (and only assigned to while it is
+// on the stack, never destroyed): the number types' default constructors would otherwise zero all
+// kMaxStack slots (8 KB for a dual number) at every evaluation, most of which a formula never
+// reaches.
+template <typename T> struct RawStack {
     static_assert(std::is_trivially_destructible_v<T>);
     alignas(T) std::byte storage[sizeof(T) * (kMaxStack + 1)];
-    T* const stack = reinterpret_cast<T*>(storage);
+    T* slots() { return reinterpret_cast<T*>(storage); }
+};
+
+// The program on one number type; with `steps`, each step's result is kept there too (the
+// natural bounds that runCentredSkipping reads).
+template <typename Ops>
+typename Ops::T run(const Ops& ops, const ExprProgram& prog, const typename Ops::T& x, const typename Ops::T& y,
+                    const typename Ops::T& z, typename Ops::T* steps = nullptr) {
+    RawStack<typename Ops::T> raw;
+    typename Ops::T* const stack = raw.slots();
     int top = -1;
-    auto push = [&](const T& v) { new (stack + ++top) T(v); };
-    for (const ExprInstr& in : prog.code) {
-        switch (in.op) {
-        case ExprOp::Const: push(ops.constant(prog.constants[in.arg])); break;
-        case ExprOp::X: push(ops.var(x, 0)); break;
-        case ExprOp::Y: push(ops.var(y, 1)); break;
-        case ExprOp::Z: push(ops.var(z, 2)); break;
-        case ExprOp::Add: --top; stack[top] = ops.add(stack[top], stack[top + 1]); break;
-        case ExprOp::Sub: --top; stack[top] = ops.sub(stack[top], stack[top + 1]); break;
-        case ExprOp::Mul: --top; stack[top] = ops.mul(stack[top], stack[top + 1]); break;
-        case ExprOp::Div: --top; stack[top] = ops.div(stack[top], stack[top + 1]); break;
-        case ExprOp::Pow: --top; stack[top] = ops.pow(stack[top], stack[top + 1]); break;
-        case ExprOp::PowInt: stack[top] = ops.powInt(stack[top], int(std::int32_t(in.arg))); break;
-        case ExprOp::Neg: stack[top] = ops.neg(stack[top]); break;
-        case ExprOp::Abs: stack[top] = ops.abs(stack[top]); break;
-        case ExprOp::Sqrt: stack[top] = ops.sqrt(stack[top]); break;
-        case ExprOp::Exp: stack[top] = ops.exp(stack[top]); break;
-        case ExprOp::Log: stack[top] = ops.log(stack[top]); break;
-        case ExprOp::Sin: stack[top] = ops.sin(stack[top]); break;
-        case ExprOp::Cos: stack[top] = ops.cos(stack[top]); break;
-        case ExprOp::Tan: stack[top] = ops.tan(stack[top]); break;
-        case ExprOp::Min:
-        case ExprOp::Max: {
-            const int n = int(in.arg);
-            T acc = stack[top - n + 1];
-            for (int i = top - n + 2; i <= top; ++i) acc = in.op == ExprOp::Min ? ops.min(acc, stack[i]) : ops.max(acc, stack[i]);
-            top -= n - 1;
-            stack[top] = acc;
-            break;
+    for (std::size_t i = 0; i < prog.code.size(); ++i) {
+        step(ops, prog, prog.code[i], stack, top, x, y, z);
+        if (steps) steps[i] = stack[top];
+    }
+    return stack[0];
+}
+
+// run(CentredOps) with the natural bounds of every step at hand: a min's or max's second or later
+// argument whose natural bounds lie wholly above the min of the arguments before it (below their
+// max) is skipped, and the arguments are folded in as each ends, in run's order. The same value as
+// run: CentredOps::min returns its first operand alone where the second's bounds lie above it,
+// and a step's centred bounds lie within its natural ones (each is the natural operation on
+// narrower operands, intersected with the mean value form). Where an argument is undefined over
+// the whole box (a square root of a wholly negative value) its centred bounds may be the whole
+// line while the natural ones are not; skipped, it bounds the min more tightly — still soundly, as
+// the point values ignore an undefined argument (ScalarOps::min keeps its first operand).
+Centred runCentredSkipping(const CentredOps& ops, const ExprProgram& prog, const Centred& x, const Centred& y, const Centred& z,
+                           const BInterval* natural) {
+    RawStack<Centred> raw;
+    Centred* const stack = raw.slots();
+    int top = -1;
+    for (std::size_t i = 0; i < prog.code.size(); ++i) {
+        const std::int32_t end = prog.argumentEnd[i];
+        if (end >= 0) {
+            const Centred& before = stack[top]; // the arguments before this one, folded
+            const BInterval& arg = natural[end];
+            if (prog.foldAfter[std::size_t(end)] == ExprFold::Min ? before.v.upper() < arg.lower() : before.v.lower() > arg.upper()) {
+                i = std::size_t(end);
+                continue;
+            }
         }
-        case ExprOp::Clamp:
-            top -= 2;
-            stack[top] = ops.min(ops.max(stack[top], stack[top + 1]), stack[top + 2]);
-            break;
+        step(ops, prog, prog.code[i], stack, top, x, y, z, true);
+        switch (prog.foldAfter[i]) {
+        case ExprFold::None: break;
+        case ExprFold::Min: --top; stack[top] = ops.min(stack[top], stack[top + 1]); break;
+        case ExprFold::Max: --top; stack[top] = ops.max(stack[top], stack[top + 1]); break;
         }
     }
     return stack[0];
@@ -492,22 +544,71 @@ double evalGradient(const ExprProgram& prog, const Vec3d& p, Vec3d& gradient) {
     return r.v;
 }
 
-Interval evalNaturalBounds(const ExprProgram& prog, const Box3& box) {
-    ProtectedInterval::traits_type::rounding upward; // sets the rounding mode, restores it on return
-    return toInterval(
-        run(IntervalOps{}, prog, BInterval(box.min.x, box.max.x), BInterval(box.min.y, box.max.y), BInterval(box.min.z, box.max.z)));
+namespace {
+
+BInterval boxSide(const Box3& box, std::size_t a) { return BInterval(box.min[a], box.max[a]); }
+
+// The natural bounds of every step of one program over one box, as evalNaturalBoundsKept left them
+// on this thread.
+struct KeptSteps {
+    std::uint64_t program = 0;
+    Box3 box;
+    std::vector<BInterval> steps;
+};
+thread_local KeptSteps tKept;
+
+// Rounding upward must be on.
+BInterval naturalKept(const ExprProgram& prog, const Box3& box) {
+    tKept.steps.resize(prog.code.size());
+    tKept.program = prog.id;
+    tKept.box = box;
+    return run(IntervalOps{}, prog, boxSide(box, 0), boxSide(box, 1), boxSide(box, 2), tKept.steps.data());
 }
 
-Interval evalBounds(const ExprProgram& prog, const Box3& box) {
-    ProtectedInterval::traits_type::rounding upward;
+// Rounding upward must be on. Skips min and max arguments where `natural` (every step's) is given.
+Interval centred(const ExprProgram& prog, const Box3& box, const BInterval* natural) {
     const Vec3d c = (box.min + box.max) * 0.5;
     double halfWidth[3];
     Centred var[3];
     for (std::size_t a = 0; a < 3; ++a) {
         halfWidth[a] = std::max(c[a] - box.min[a], box.max[a] - c[a]); // rounded up
-        var[a] = Centred{BInterval(box.min[a], box.max[a]), BInterval(c[a]), {}};
+        var[a] = Centred{boxSide(box, a), BInterval(c[a]), {}};
     }
-    return toInterval(run(CentredOps(halfWidth), prog, var[0], var[1], var[2]).v);
+    const CentredOps ops(halfWidth);
+    return toInterval((natural ? runCentredSkipping(ops, prog, var[0], var[1], var[2], natural) : run(ops, prog, var[0], var[1], var[2])).v);
+}
+
+bool hasArgumentsToSkip(const ExprProgram& prog) {
+    return prog.skippableArguments && prog.argumentEnd.size() == prog.code.size() && prog.foldAfter.size() == prog.code.size();
+}
+
+} // namespace
+
+Interval evalNaturalBounds(const ExprProgram& prog, const Box3& box) {
+    ProtectedInterval::traits_type::rounding upward; // sets the rounding mode, restores it on return
+    return toInterval(run(IntervalOps{}, prog, boxSide(box, 0), boxSide(box, 1), boxSide(box, 2)));
+}
+
+Interval evalBounds(const ExprProgram& prog, const Box3& box) {
+    ProtectedInterval::traits_type::rounding upward;
+    if (!hasArgumentsToSkip(prog)) return centred(prog, box, nullptr);
+    naturalKept(prog, box);
+    return centred(prog, box, tKept.steps.data());
+}
+
+Interval evalNaturalBoundsKept(const ExprProgram& prog, const Box3& box) {
+    ProtectedInterval::traits_type::rounding upward;
+    if (!hasArgumentsToSkip(prog)) return toInterval(run(IntervalOps{}, prog, boxSide(box, 0), boxSide(box, 1), boxSide(box, 2)));
+    return toInterval(naturalKept(prog, box));
+}
+
+Interval evalBoundsAfterNatural(const ExprProgram& prog, const Box3& box) {
+    ProtectedInterval::traits_type::rounding upward;
+    if (!hasArgumentsToSkip(prog)) return centred(prog, box, nullptr);
+    const bool kept = tKept.program == prog.id && prog.id != 0 && tKept.box.min == box.min && tKept.box.max == box.max &&
+                      tKept.steps.size() == prog.code.size();
+    if (!kept) naturalKept(prog, box);
+    return centred(prog, box, tKept.steps.data());
 }
 
 } // namespace vdbsurf

@@ -21,14 +21,14 @@ void ExpressionField::values(const Box3&, const Vec3d* points, std::size_t n, do
 }
 
 bool ExpressionField::mayStraddle(const Box3& box, double iso) const {
-    const Interval natural = evalNaturalBounds(mProgram, box);
+    const Interval natural = evalNaturalBoundsKept(mProgram, box);
     if (!straddles(natural, iso)) return false;
-    return straddles(evalBounds(mProgram, box), iso);
+    return straddles(evalBoundsAfterNatural(mProgram, box), iso);
 }
 
 bool ExpressionField::mayHoldOtherSide(const Box3& box, bool inside, double iso) const {
-    return mayBeOtherSide(inside, evalNaturalBounds(mProgram, box), iso, Inside::Below) &&
-           mayBeOtherSide(inside, evalBounds(mProgram, box), iso, Inside::Below);
+    return mayBeOtherSide(inside, evalNaturalBoundsKept(mProgram, box), iso, Inside::Below) &&
+           mayBeOtherSide(inside, evalBoundsAfterNatural(mProgram, box), iso, Inside::Below);
 }
 
 Vec3d ExpressionField::gradient(const Vec3d& p) const {

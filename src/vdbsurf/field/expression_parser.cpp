@@ -8,10 +8,12 @@
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/field/expression.h"
 
+#include <atomic>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <map>
+#include <stdexcept>
 
 namespace vdbsurf {
 
@@ -193,6 +195,49 @@ private:
 
 } // namespace
 
-ExprProgram parseExpression(const std::string& text, const std::string& input) { return Parser(text, input).run(); }
+namespace {
+
+// ExprProgram::argumentEnd and foldAfter, from the steps' operand counts: each step's subtree
+// starts where its first operand's does.
+void indexArguments(ExprProgram& prog) {
+    const std::size_t n = prog.code.size();
+    prog.argumentEnd.assign(n, -1);
+    prog.foldAfter.assign(n, ExprFold::None);
+    std::vector<std::int32_t> starts; // of the subtrees on the stack
+    for (std::size_t i = 0; i < n; ++i) {
+        const ExprInstr& in = prog.code[i];
+        std::size_t operands = 0;
+        switch (in.op) {
+        case ExprOp::Const: case ExprOp::X: case ExprOp::Y: case ExprOp::Z: operands = 0; break;
+        case ExprOp::Add: case ExprOp::Sub: case ExprOp::Mul: case ExprOp::Div: case ExprOp::Pow: operands = 2; break;
+        case ExprOp::Min: case ExprOp::Max: operands = in.arg; break;
+        case ExprOp::Clamp: operands = 3; break;
+        default: operands = 1; break;
+        }
+        if (operands > starts.size()) throw std::logic_error("expression: a step takes more operands than the stack holds");
+        const std::size_t first = starts.size() - operands;
+        if (in.op == ExprOp::Min || in.op == ExprOp::Max)
+            for (std::size_t a = first + 1; a < starts.size(); ++a) {
+                const std::int32_t end = a + 1 < starts.size() ? starts[a + 1] - 1 : std::int32_t(i) - 1;
+                prog.argumentEnd[std::size_t(starts[a])] = end;
+                prog.foldAfter[std::size_t(end)] = in.op == ExprOp::Min ? ExprFold::Min : ExprFold::Max;
+                prog.skippableArguments = true;
+            }
+        const std::int32_t start = operands ? starts[first] : std::int32_t(i);
+        starts.resize(first);
+        starts.push_back(start);
+    }
+    if (starts.size() != 1) throw std::logic_error("expression: the program does not leave one value");
+}
+
+} // namespace
+
+ExprProgram parseExpression(const std::string& text, const std::string& input) {
+    static std::atomic<std::uint64_t> parses{0};
+    ExprProgram prog = Parser(text, input).run();
+    indexArguments(prog);
+    prog.id = ++parses;
+    return prog;
+}
 
 } // namespace vdbsurf
