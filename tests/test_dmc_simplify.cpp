@@ -3,10 +3,15 @@
 // removed within the tolerance of what is left; thick parts beside them are not touched.
 #include "support/formula_text.h"
 
+#include "vdbsurf/core/threads.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/dmc/thin_simplify.h"
 #include "vdbsurf/field/expression_field.h"
+#include "vdbsurf/lattice/lattice.h"
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_distance.h"
+#include "vdbsurf/mesh/mesh_folds.h"
 #include "vdbsurf/quality/surface_quality.h"
 
 #include <catch2/catch.hpp>
@@ -142,4 +147,61 @@ TEST_CASE("the simplification leaves thick parts beside a thin rod as they were"
     const auto a = farPolygons(plain), b = farPolygons(simple);
     CHECK(a.size() > 300);
     CHECK(a == b);
+}
+
+TEST_CASE("thin parts are simplified in blocks the same way at any thread count, and as far as in one run") {
+    // A half shell a fifth of a cell thick, 18 cells across: with blocks of 4 cells, most of its
+    // vertices lie in a block and many on the blocks' faces.
+    const ExpressionField field("max(x^2+y^2+z^2-0.81, 0.7719-x^2-y^2-z^2, y-0.013)", kBox);
+    MeshRequest req;
+    req.voxelSize = kH;
+    req.simplifyThin = false;
+    std::vector<Vec3d> thinNodes; // where the thin search put its nodes (no sharp features here)
+    LatticeFrame frame;
+    req.deformedLattice = [&](const Lattice& lattice, const LatticeDeformation& deformation, const OwnFrame*) {
+        frame = lattice.frame;
+        for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
+            const openvdb::Coord c = it.getCoord();
+            const openvdb::Vec3f o = *it;
+            thinNodes.push_back(lattice.frame.nodeWorld(Vec3i(c.x(), c.y(), c.z())) + Vec3d(o.x(), o.y(), o.z()));
+        }
+    };
+    MeshReport report;
+    const Mesh plain = meshField(field, req, report);
+    REQUIRE(thinNodes.size() > 500);
+    REQUIRE(report.nodesOnEdges + report.nodesOnCorners == 0);
+    const MeshDistance plainDistance(plain, kH);
+
+    std::map<double, std::size_t> triangles;
+    for (double blockCells : {0.0, 4.0, 16.0}) {
+        INFO("blocks of " << blockCells << " cells");
+        ThinSimplifyOptions options;
+        options.blockCells = blockCells;
+        Mesh out[2];
+        ThinSimplifyStats stats[2];
+        for (int threads : {1, 2}) {
+            ThreadLimit limit(threads);
+            out[threads - 1] = simplifyThinParts(field, frame, thinNodes, plain, options, &stats[threads - 1]);
+        }
+        CHECK(out[0].points == out[1].points);
+        CHECK(out[0].indices == out[1].indices);
+        CHECK(out[0].offsets == out[1].offsets);
+        CHECK(stats[0].collapses == stats[1].collapses);
+        const Mesh& m = out[0];
+        CHECK(stats[0].collapses > plain.points.size() / 3);
+        CHECK(checkTopology(m).closedManifoldOriented());
+        CHECK(checkTopology(m).unusedVertices == 0);
+        CHECK(foldedVertices(m).empty());
+        CHECK(countComponents(m) == countComponents(plain));
+        // Every vertex taken away lies within the tolerance of what is left.
+        const MeshDistance distance(m, 0.5 * kH);
+        double farthest = 0;
+        for (const Vec3f& p : plain.points) farthest = std::max(farthest, distance.distance(Vec3d(p), 0.5 * kH));
+        CHECK(farthest <= 0.1 * kH * (1 + 1e-6));
+        triangles[blockCells] = m.fannedTriangleCount();
+    }
+    // The blocks' borders are collapsed later, in another order: about as far as in one run.
+    INFO("triangles: one run " << triangles[0] << ", blocks of 4 cells " << triangles[4] << ", of 16 " << triangles[16]);
+    CHECK(double(triangles[4]) <= 1.05 * double(triangles[0]));
+    CHECK(double(triangles[16]) <= 1.05 * double(triangles[0]));
 }

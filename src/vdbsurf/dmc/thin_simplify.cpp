@@ -5,11 +5,16 @@
 #include "vdbsurf/mesh/mesh_distance.h"
 #include "vdbsurf/mesh/mesh_folds.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <queue>
+#include <stdexcept>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -59,7 +64,7 @@ struct Option {
 };
 
 // The queue holds each vertex once, by its cheapest option not yet tried (its options sorted
-// apart, in Vertex::options): the collapses are tried in the order of one queue of every
+// apart, in ThinSimplifier::mOptions): the collapses are tried in the order of one queue of every
 // option — by cost, then u, then v — with a sixth of its entries (a vertex has about six
 // neighbours, and every collapse renews the options of a dozen vertices; the queue of options
 // was most of the simplification's time). Valid while u's stamp is unchanged.
@@ -84,34 +89,58 @@ public:
     // stay), so that the link condition sees every edge a collapse could double.
     std::vector<std::vector<std::uint32_t>> fixedNeighbours;
 
-    std::uint64_t run(const CancelToken* cancel) {
-        const std::size_t n = pos.size();
-        fan.assign(n, {});
-        for (std::uint32_t t = 0; t < triangles.size(); ++t)
-            for (std::uint32_t v : triangles[t].v) fan[v].push_back(t);
-        lockBordersAndPinches();
-        mDead.assign(n, 0);
-        mStamp.assign(n, 0);
-        mOptions.assign(n, {});
-        mTried.assign(n, 0);
-        mRemoved.assign(triangles.size(), {});
-        mQuadric.assign(n, Quadric());
+    // Carried from an earlier run over part of the region, or empty (then: from the triangles,
+    // none, none): per vertex its quadric, per triangle the removed vertices it answers for, per
+    // vertex whether it was removed.
+    std::vector<Quadric> quadric;
+    std::vector<std::vector<std::uint32_t>> removed;
+    std::vector<std::uint8_t> dead;
+    // Per vertex, after run(): whether a collapse changed its neighbourhood (it was tried again).
+    std::vector<std::uint8_t> touched;
+
+    // Garland and Heckbert's quadrics of the triangles as they are (alive), each plane weighted by
+    // its triangle's area.
+    std::vector<Quadric> quadricsOfTriangles() const {
+        std::vector<Quadric> q(pos.size());
         for (const Triangle& t : triangles) {
+            if (!t.alive) continue;
             const Vec3d c = cross(pos[t.v[1]] - pos[t.v[0]], pos[t.v[2]] - pos[t.v[0]]);
             const double len = length(c);
             if (!(len > 0)) continue;
             const Vec3d nrm = c / len;
-            for (std::uint32_t v : t.v) mQuadric[v].addPlane(nrm, -dot(nrm, pos[t.v[0]]), 0.5 * len);
+            for (std::uint32_t v : t.v) q[v].addPlane(nrm, -dot(nrm, pos[t.v[0]]), 0.5 * len);
         }
-        for (std::uint32_t u = 0; u < n; ++u) pushAround(u);
+        return q;
+    }
+
+    // Collapses until none passes, cheapest first. Vertices that `settled` marks are not tried
+    // until a collapse changes their neighbourhood (an earlier run tried them all as they are).
+    // After it, `locked` holds the borders and pinches too, and `fan`-less vertices are dead or
+    // outside the region.
+    std::uint64_t run(const CancelToken* cancel, const std::vector<std::uint8_t>* settled = nullptr) {
+        const std::size_t n = pos.size();
+        fan.assign(n, {});
+        for (std::uint32_t t = 0; t < triangles.size(); ++t)
+            if (triangles[t].alive)
+                for (std::uint32_t v : triangles[t].v) fan[v].push_back(t);
+        lockBordersAndPinches();
+        dead.resize(n, 0);
+        touched.assign(n, 0);
+        mStamp.assign(n, 0);
+        mOptions.assign(n, {});
+        mTried.assign(n, 0);
+        removed.resize(triangles.size());
+        if (quadric.empty()) quadric = quadricsOfTriangles();
+        for (std::uint32_t u = 0; u < n; ++u)
+            if (!settled || !(*settled)[u]) pushAround(u);
         std::uint64_t collapses = 0, pops = 0;
         while (!mQueue.empty()) {
             const Candidate c = mQueue.top();
             mQueue.pop();
             if (cancel && (++pops & 4095) == 0) cancel->check();
-            if (mDead[c.u] || c.stamp != mStamp[c.u]) continue;
+            if (dead[c.u] || c.stamp != mStamp[c.u]) continue;
             const std::uint32_t v = mOptions[c.u][mTried[c.u]++].v;
-            if (!mDead[v] && collapse(c.u, v)) {
+            if (!dead[v] && collapse(c.u, v)) {
                 ++collapses;
                 continue;
             }
@@ -124,10 +153,7 @@ private:
     std::vector<std::vector<std::uint32_t>> fan; // per local vertex: its live triangles
     const Field& mField;
     const double mIso, mTolerance, mTinyArea;
-    std::vector<std::uint8_t> mDead;
     std::vector<std::uint32_t> mStamp;
-    std::vector<std::vector<std::uint32_t>> mRemoved; // per triangle: removed vertices it answers for
-    std::vector<Quadric> mQuadric;
     std::priority_queue<Candidate> mQueue;
     std::vector<std::vector<Option>> mOptions; // per vertex: its collapses, cheapest first
     std::vector<std::uint32_t> mTried;         // per vertex: how many of them were tried
@@ -154,7 +180,8 @@ private:
         std::vector<std::uint64_t> edges;
         edges.reserve(triangles.size() * 3);
         for (const Triangle& t : triangles)
-            for (int k = 0; k < 3; ++k) edges.push_back(undirectedEdgeKey(t.v[std::size_t(k)], t.v[std::size_t((k + 1) % 3)]));
+            if (t.alive)
+                for (int k = 0; k < 3; ++k) edges.push_back(undirectedEdgeKey(t.v[std::size_t(k)], t.v[std::size_t((k + 1) % 3)]));
         std::sort(edges.begin(), edges.end());
         for (std::size_t i = 0; i < edges.size();) {
             std::size_t j = i;
@@ -174,15 +201,15 @@ private:
     }
 
     void pushAround(std::uint32_t u) {
-        if (locked[u] || mDead[u]) return;
+        if (locked[u] || dead[u]) return;
         neighbours(u, mScratch);
         std::vector<Option>& options = mOptions[u];
         options.clear();
         mTried[u] = 0;
         for (std::uint32_t v : mScratch) {
             if (fan[v].empty()) continue; // (outside the region: not a target)
-            Quadric q = mQuadric[u];
-            q += mQuadric[v];
+            Quadric q = quadric[u];
+            q += quadric[v];
             options.push_back({std::max(0.0, q.at(pos[v])), v});
         }
         if (options.empty()) return;
@@ -266,7 +293,7 @@ private:
         };
         if (!near(pos[u])) return false;
         for (std::uint32_t t : fan[u])
-            for (std::uint32_t r : mRemoved[t])
+            for (std::uint32_t r : removed[t])
                 if (!near(pos[r])) return false;
         // The new triangles near the surface at their centroids and at the middles of their new
         // edges (v to each of u's neighbours but a and b; the other edges were there before).
@@ -281,8 +308,8 @@ private:
         std::vector<std::uint32_t>& moving = mMoving;
         moving.assign(1, u);
         for (std::uint32_t t : fan[u]) {
-            moving.insert(moving.end(), mRemoved[t].begin(), mRemoved[t].end());
-            mRemoved[t].clear();
+            moving.insert(moving.end(), removed[t].begin(), removed[t].end());
+            removed[t].clear();
         }
         for (std::uint32_t t : shared) {
             triangles[t].alive = false;
@@ -312,23 +339,194 @@ private:
                 const double d = pointTriangleDistance(pos[r], pos[tr.v[0]], pos[tr.v[1]], pos[tr.v[2]]);
                 if (d < bestDistance) bestDistance = d, best = t;
             }
-            mRemoved[best].push_back(r);
+            removed[best].push_back(r);
         }
         fan[u].clear();
-        mDead[u] = 1;
-        mQuadric[v] += mQuadric[u];
+        dead[u] = 1;
+        quadric[v] += quadric[u];
         // Every vertex whose fan changed gets its candidates again.
         neighbours(v, mNv);
         const std::vector<std::uint32_t>& around = mNv; // (pushAround leaves mNv alone)
         ++mStamp[v];
         pushAround(v);
+        touched[v] = 1;
         for (std::uint32_t w : around) {
             ++mStamp[w];
             pushAround(w);
+            touched[w] = 1;
         }
         return true;
     }
 };
+
+// The region's collapses, most of them in parallel: each block of blockCells^3 lattice cells on
+// its own, then each block of a grid shifted by half a block (what lay along the first blocks'
+// faces lies inside these), then the whole region once more for what is left (where the two
+// grids' faces cross). A block's run holds the triangles whose corners all lie in the block; a
+// vertex with a triangle beyond the block is locked there (an open border of the block's
+// triangles), and such triangles are its neighbours' fixed edges. Every triangle a block's run
+// reads or changes then has a corner in the block, and none another block's run changes: a
+// triangle that one changes has a vertex collapsing there, all of whose triangles lie in that
+// block. So the blocks' runs are independent, and each is the serial greedy on its part. Later runs
+// take the quadrics and removed vertices with them, and try the vertices no run has tried as they
+// now are (the blocks' borders, and those around a collapse since), cheapest first. The blocks
+// are fixed by the lattice, not by the threads: the output does not depend on their number.
+// One grid of blocks (its corner at `offset` cells from the frame's origin) over the region as
+// it is. `settled`: vertices tried as they are, which no run needs to try again (updated).
+std::uint64_t collapseInBlocks(ThinSimplifier& whole, const Field& field, const ThinSimplifyOptions& options, const LatticeFrame& frame,
+                               double offset, std::vector<std::uint8_t>& settled) {
+    const std::size_t n = whole.pos.size();
+    const double side = options.blockCells * frame.h;
+    const Vec3d corner = frame.origin + Vec3d(offset, offset, offset) * frame.h;
+    std::vector<std::uint64_t> blockOf(n);
+    for (std::size_t v = 0; v < n; ++v) {
+        const Vec3d c = (whole.pos[v] - corner) / side;
+        blockOf[v] = cellKey(std::int64_t(std::floor(c.x)), std::int64_t(std::floor(c.y)), std::int64_t(std::floor(c.z)));
+    }
+    // The live triangles by block (those with corners in two blocks in none), and the fans.
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> inBlock; // (block, triangle), by block, then triangle
+    std::vector<std::vector<std::uint32_t>> fanOf(n);
+    for (std::uint32_t t = 0; t < whole.triangles.size(); ++t) {
+        if (!whole.triangles[t].alive) continue;
+        const auto& v = whole.triangles[t].v;
+        for (std::uint32_t x : v) fanOf[x].push_back(t);
+        if (blockOf[v[0]] == blockOf[v[1]] && blockOf[v[0]] == blockOf[v[2]]) inBlock.emplace_back(blockOf[v[0]], t);
+    }
+    std::sort(inBlock.begin(), inBlock.end());
+    std::vector<std::size_t> firstOfBlock;
+    for (std::size_t i = 0; i < inBlock.size(); ++i)
+        if (i == 0 || inBlock[i].first != inBlock[i - 1].first) firstOfBlock.push_back(i);
+    firstOfBlock.push_back(inBlock.size());
+    auto interior = [&](std::uint32_t t, std::uint64_t block) {
+        const auto& v = whole.triangles[t].v;
+        return blockOf[v[0]] == block && blockOf[v[1]] == block && blockOf[v[2]] == block;
+    };
+
+    // What each block's run leaves, written back once all are done (a block reads the vertices
+    // beside it from the whole region meanwhile).
+    struct Result {
+        std::vector<std::uint32_t> globalOf; // local vertex -> region vertex (the block's own first)
+        std::size_t own = 0;
+        std::vector<std::uint32_t> triangleOf; // local triangle -> region triangle
+        std::unique_ptr<ThinSimplifier> sub;
+        std::uint64_t collapses = 0;
+    };
+    const std::size_t blocks = firstOfBlock.size() - 1;
+    std::vector<Result> results(blocks);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, blocks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t b = r.begin(); b < r.end(); ++b) {
+            const std::uint64_t block = inBlock[firstOfBlock[b]].first;
+            Result& res = results[b];
+            res.sub = std::make_unique<ThinSimplifier>(field, options, frame.h);
+            ThinSimplifier& sub = *res.sub;
+            // The block's own vertices (ascending: ties fall as in the region's numbering), then
+            // the others of their triangles and fixed edges.
+            std::vector<std::uint32_t>& globalOf = res.globalOf;
+            for (std::size_t i = firstOfBlock[b]; i < firstOfBlock[b + 1]; ++i)
+                for (std::uint32_t x : whole.triangles[inBlock[i].second].v) globalOf.push_back(x);
+            std::sort(globalOf.begin(), globalOf.end());
+            globalOf.erase(std::unique(globalOf.begin(), globalOf.end()), globalOf.end());
+            res.own = globalOf.size();
+            auto isOwn = [&](std::uint32_t x) { return std::binary_search(globalOf.begin(), globalOf.begin() + std::ptrdiff_t(res.own), x); };
+            std::vector<std::uint32_t> beside;
+            for (std::size_t i = 0; i < res.own; ++i) {
+                const std::uint32_t g = globalOf[i];
+                for (std::uint32_t t : fanOf[g])
+                    if (!interior(t, block))
+                        for (std::uint32_t x : whole.triangles[t].v)
+                            if (!isOwn(x)) beside.push_back(x);
+                for (std::uint32_t x : whole.fixedNeighbours[g])
+                    if (!isOwn(x)) beside.push_back(x);
+            }
+            // And the vertices removed earlier that the block's triangles answer for (dead).
+            for (std::size_t i = firstOfBlock[b]; i < firstOfBlock[b + 1]; ++i)
+                for (std::uint32_t x : whole.removed[inBlock[i].second]) beside.push_back(x);
+            std::sort(beside.begin(), beside.end());
+            beside.erase(std::unique(beside.begin(), beside.end()), beside.end());
+            globalOf.insert(globalOf.end(), beside.begin(), beside.end());
+            const auto ownEnd = globalOf.begin() + std::ptrdiff_t(res.own);
+            auto localOf = [&](std::uint32_t g) {
+                auto it = std::lower_bound(globalOf.begin(), ownEnd, g);
+                if (it == ownEnd || *it != g) it = std::lower_bound(ownEnd, globalOf.end(), g);
+                if (it == globalOf.end() || *it != g) throw std::logic_error("thin simplification: a block lacks a vertex it reads");
+                return std::uint32_t(it - globalOf.begin());
+            };
+            const std::size_t m = globalOf.size();
+            sub.pos.resize(m);
+            sub.locked.assign(m, 1); // (the vertices beside the block)
+            sub.fixedNeighbours.assign(m, {});
+            sub.quadric.assign(m, Quadric());
+            sub.dead.assign(m, 0);
+            std::vector<std::uint8_t> settledHere(m, 1);
+            for (std::size_t i = 0; i < m; ++i) {
+                sub.pos[i] = whole.pos[globalOf[i]];
+                sub.dead[i] = whole.dead[globalOf[i]];
+            }
+            for (std::size_t i = 0; i < res.own; ++i) {
+                const std::uint32_t g = globalOf[i];
+                sub.locked[i] = whole.locked[g];
+                sub.quadric[i] = whole.quadric[g];
+                settledHere[i] = settled[g];
+                auto& fixed = sub.fixedNeighbours[i];
+                for (std::uint32_t x : whole.fixedNeighbours[g]) fixed.push_back(localOf(x));
+                for (std::uint32_t t : fanOf[g])
+                    if (!interior(t, block))
+                        for (std::uint32_t x : whole.triangles[t].v)
+                            if (x != g) fixed.push_back(localOf(x));
+            }
+            for (std::size_t i = firstOfBlock[b]; i < firstOfBlock[b + 1]; ++i) {
+                const std::uint32_t t = inBlock[i].second;
+                res.triangleOf.push_back(t);
+                Triangle local;
+                local.changed = whole.triangles[t].changed;
+                for (std::size_t k = 0; k < 3; ++k) local.v[k] = localOf(whole.triangles[t].v[k]);
+                sub.triangles.push_back(local);
+                std::vector<std::uint32_t> answered;
+                for (std::uint32_t x : whole.removed[t]) answered.push_back(localOf(x));
+                sub.removed.push_back(std::move(answered));
+            }
+            res.collapses = sub.run(options.cancel, &settledHere);
+        }
+    });
+    if (options.cancel) options.cancel->check();
+
+    std::uint64_t collapses = 0;
+    for (const Result& res : results) {
+        const ThinSimplifier& sub = *res.sub;
+        collapses += res.collapses;
+        for (std::size_t i = 0; i < res.own; ++i) {
+            const std::uint32_t g = res.globalOf[i];
+            whole.quadric[g] = sub.quadric[i];
+            whole.dead[g] = sub.dead[i];
+            // Tried in this run as it now is: free here. Else as settled as before, unless a
+            // collapse here changed its neighbourhood.
+            settled[g] = !sub.locked[i] || (settled[g] && !sub.touched[i]);
+        }
+        for (std::size_t i = 0; i < res.triangleOf.size(); ++i) {
+            Triangle& t = whole.triangles[res.triangleOf[i]];
+            const Triangle& local = sub.triangles[i];
+            t.alive = local.alive;
+            t.changed = local.changed;
+            for (std::size_t k = 0; k < 3; ++k) t.v[k] = res.globalOf[local.v[k]];
+            auto& answered = whole.removed[res.triangleOf[i]];
+            answered.clear();
+            for (std::uint32_t x : sub.removed[i]) answered.push_back(res.globalOf[x]);
+        }
+    }
+    return collapses;
+}
+
+std::uint64_t collapseRegion(ThinSimplifier& whole, const Field& field, const ThinSimplifyOptions& options, const LatticeFrame& frame) {
+    const std::size_t n = whole.pos.size();
+    whole.quadric = whole.quadricsOfTriangles();
+    whole.removed.assign(whole.triangles.size(), {});
+    whole.dead.assign(n, 0);
+    if (!(options.blockCells > 0)) return whole.run(options.cancel);
+    std::vector<std::uint8_t> settled(n, 0);
+    std::uint64_t collapses = collapseInBlocks(whole, field, options, frame, 0.0, settled);
+    collapses += collapseInBlocks(whole, field, options, frame, 0.5 * options.blockCells, settled);
+    return collapses + whole.run(options.cancel, &settled);
+}
 
 } // namespace
 
@@ -456,7 +654,7 @@ Mesh simplifyThinParts(const Field& field, const LatticeFrame& frame, const std:
     simplifier.locked.assign(n, 0);
     for (std::size_t g = 0; g < mesh.points.size(); ++g)
         if (localOf[g] != 0xffffffffu && outside[g]) simplifier.locked[localOf[g]] = 1;
-    st.collapses = simplifier.run(options.cancel);
+    st.collapses = collapseRegion(simplifier, field, options, frame);
     if (st.collapses == 0) return timed(std::move(mesh));
 
     // The mesh again, in polygon order: untouched polygons as they were, the rest as the

@@ -10,8 +10,10 @@
 //    edge midpoints (|f - iso| / |grad f|), and
 //  - every vertex removed so far lies within the tolerance of the triangles that replace it.
 // Vertices on a polygon outside the thin region, on an open border or on an edge of more than
-// two polygons stay. Untouched polygons keep their shape (quads stay quads). Serial and in a
-// fixed order: the output does not depend on the number of threads.
+// two polygons stay. Untouched polygons keep their shape (quads stay quads). In parallel over
+// blocks of the lattice (two grids of them, the second shifted by half a block, then one serial
+// run for what is left where their faces cross), each block's collapses in a fixed order: the
+// output does not depend on the number of threads.
 #pragma once
 #include "vdbsurf/core/lattice_frame.h"
 #include "vdbsurf/core/vec3.h"
@@ -28,6 +30,9 @@ class Field;
 struct ThinSimplifyOptions {
     double iso = 0;
     double tolerance = 0.1; // in lattice cells
+    // The edge of the blocks collapsed in parallel, in lattice cells; 0: one serial run over the
+    // whole region (the greedy order everywhere; for comparisons).
+    double blockCells = 16;
     const CancelToken* cancel = nullptr;
 };
 
