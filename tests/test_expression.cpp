@@ -232,6 +232,47 @@ TEST_CASE("bounds skip min and max arguments that cannot matter and come out bit
     }
     CHECK(boxes == 1600);
     CHECK(decidedBoth > 400);
+    // Boxes inside a box around them, their natural bounds skipping by its steps (the lattice's
+    // blocks and cells, Ω's octants): the same bounds, and the same answers box by box.
+    std::size_t inner = 0, straddling = 0;
+    for (const auto& f : formulas) {
+        const ExprProgram p = parseExpression(f);
+        ExprProgram whole = p;
+        whole.skippableArguments = false;
+        const ExpressionField field(f, Box3{{-3, -3, -3}, {3, 3, 3}});
+        for (int b = 0; b < 100; ++b) {
+            const Box3 around = randomBox(rng, 2.5, -2, 2);
+            std::vector<Box3> boxes;
+            for (int k = 0; k < 8; ++k) {
+                const Vec3d a = pointIn(around, 8 + k, rng), c = pointIn(around, 16 + k, rng);
+                boxes.push_back(Box3{{std::min(a.x, c.x), std::min(a.y, c.y), std::min(a.z, c.z)},
+                                     {std::max(a.x, c.x), std::max(a.y, c.y), std::max(a.z, c.z)}});
+            }
+            keepNaturalStepsAround(p, around);
+            for (const Box3& box : boxes) {
+                const Interval natural = evalNaturalBoundsKept(p, box), plainNatural = evalNaturalBounds(whole, box);
+                REQUIRE(std::memcmp(&natural, &plainNatural, sizeof(Interval)) == 0);
+                const Interval staged = evalBoundsAfterNatural(p, box), plain = evalBounds(whole, box);
+                REQUIRE(std::memcmp(&staged, &plain, sizeof(Interval)) == 0);
+                ++inner;
+            }
+            // A box reaching out of the one around is bounded as it is.
+            const Vec3d shift = (around.max - around.min) * 0.5;
+            for (const Box3& box : {Box3{around.min + shift, around.max + shift}, Box3{around.min - shift, around.max}}) {
+                const Interval natural = evalNaturalBoundsKept(p, box), plainNatural = evalNaturalBounds(whole, box);
+                REQUIRE(std::memcmp(&natural, &plainNatural, sizeof(Interval)) == 0);
+            }
+            std::uint8_t within[8];
+            field.mayStraddleWithin(around, boxes.data(), boxes.size(), 0.0, within);
+            for (std::size_t k = 0; k < boxes.size(); ++k) {
+                CHECK(bool(within[k]) == straddles(evalBounds(whole, boxes[k]), 0.0));
+                straddling += within[k];
+            }
+        }
+    }
+    CHECK(inner == 3200);
+    CHECK(straddling > 50);
+    CHECK(straddling < inner - 500);
     // Kept steps of another box or program are not used: they are computed again.
     const ExprProgram a = parseExpression(formulas[1]), b = parseExpression(formulas[2]);
     const Box3 one{{0.1, 0.1, 0.1}, {0.3, 0.2, 0.4}}, other{{-1.2, 0.4, 0.0}, {-0.9, 0.6, 0.1}};

@@ -158,6 +158,8 @@ public:
         const bool nodeInside = isInside(around[13], mIso, mSide);
         const Vec3d centre = frame.nodeWorld(ni);
         found.clear();
+        int octants[8], asked = 0;
+        Box3 boxes[8];
         for (int d = 0; d < 8; ++d) {
             const int dx = d & 1, dy = (d >> 1) & 1, dz = (d >> 2) & 1;
             const Coord cell = n.offsetBy(dx - 1, dy - 1, dz - 1);
@@ -171,12 +173,18 @@ public:
                 }
                 if (represented) continue;
             }
-            // (Bounds over the octant's eighths before sampling them paid while a formula's
-            // points cost a few microseconds each; evaluated together they cost less than the
-            // bounds: 20 spikes at 80^3 5.7 -> 3.1 s, the lens 2.9 -> 1.4 s at one thread.)
-            if (!mField.mayStraddle(octantBox(centre, d), mIso)) continue;
-            collectOctant(centre, d, nodeInside, evaluated, found);
+            octants[asked] = d;
+            boxes[asked++] = octantBox(centre, d);
         }
+        // The octants' bounds, asked together within Ω. (Bounds over the octants' eighths before
+        // sampling them paid while a formula's points cost a few microseconds each; evaluated
+        // together they cost less than the bounds: 20 spikes at 80^3 5.7 -> 3.1 s, the lens 2.9 ->
+        // 1.4 s at one thread.)
+        std::uint8_t straddle[8];
+        const Box3 omega{centre - Vec3d(mH / 2, mH / 2, mH / 2), centre + Vec3d(mH / 2, mH / 2, mH / 2)};
+        mField.mayStraddleWithin(omega, boxes, std::size_t(asked), mIso, straddle);
+        for (int k = 0; k < asked; ++k)
+            if (straddle[k]) collectOctant(centre, octants[k], nodeInside, evaluated, found);
         return placeAtCentroid(centre, found, nodeInside);
     }
 

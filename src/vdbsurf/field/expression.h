@@ -79,5 +79,10 @@ Interval evalBounds(const ExprProgram& prog, const Box3& box);
 // program or box, it computes them again.
 Interval evalNaturalBoundsKept(const ExprProgram& prog, const Box3& box);
 Interval evalBoundsAfterNatural(const ExprProgram& prog, const Box3& box);
+// Keeps the natural bounds of every step over `around` (a buffer of the calling thread) for the
+// evalNaturalBoundsKept calls over boxes inside it that follow: they skip the min and max
+// arguments those rule out (a step's natural bounds over a box lie within its bounds over a box
+// around it), with the same results. Until it is called again on this thread.
+void keepNaturalStepsAround(const ExprProgram& prog, const Box3& around);
 
 } // namespace vdbsurf

@@ -339,7 +339,7 @@ private:
 };
 
 // One step of the program on the stack (top: its top slot). A min or max of n arguments folds
-// them left to right; with `folded`, each was folded in at its own end (runCentredSkipping) and
+// them left to right; with `folded`, each was folded in at its own end (runSkipping) and
 // the step has nothing left to do.
 template <typename Ops>
 inline void step(const Ops& ops, const ExprProgram& prog, const ExprInstr& in, typename Ops::T* stack, int& top,
@@ -393,7 +393,7 @@ template <typename T> struct RawStack {
 };
 
 // The program on one number type; with `steps`, each step's result is kept there too (the
-// natural bounds that runCentredSkipping reads).
+// natural bounds that runSkipping reads).
 template <typename Ops>
 typename Ops::T run(const Ops& ops, const ExprProgram& prog, const typename Ops::T& x, const typename Ops::T& y,
                     const typename Ops::T& z, typename Ops::T* steps = nullptr) {
@@ -407,31 +407,43 @@ typename Ops::T run(const Ops& ops, const ExprProgram& prog, const typename Ops:
     return stack[0];
 }
 
-// run(CentredOps) with the natural bounds of every step at hand: a min's or max's second or later
-// argument whose natural bounds lie wholly above the min of the arguments before it (below their
-// max) is skipped, and the arguments are folded in as each ends, in run's order. The same value as
-// run: CentredOps::min returns its first operand alone where the second's bounds lie above it,
-// and a step's centred bounds lie within its natural ones (each is the natural operation on
-// narrower operands, intersected with the mean value form). Where an argument is undefined over
-// the whole box (a square root of a wholly negative value) its centred bounds may be the whole
-// line while the natural ones are not; skipped, it bounds the min more tightly — still soundly, as
-// the point values ignore an undefined argument (ScalarOps::min keeps its first operand).
-Centred runCentredSkipping(const CentredOps& ops, const ExprProgram& prog, const Centred& x, const Centred& y, const Centred& z,
-                           const BInterval* natural) {
-    RawStack<Centred> raw;
-    Centred* const stack = raw.slots();
+// A step's bounds over the box, whichever the number type.
+inline const BInterval& boundsOf(const BInterval& v) { return v; }
+inline const BInterval& boundsOf(const Centred& v) { return v.v; }
+
+// run with bounds of every step over the box, or over a box around it, at hand (`known`): a
+// min's or max's second or later argument whose known bounds lie wholly above the min of the
+// arguments before it (below their max) is skipped, and the arguments are folded in as each ends,
+// in run's order. The same value as run: min and max return their first operand alone where the
+// second's bounds lie above it (below, for max), and a step's bounds lie within its known ones —
+// centred bounds within natural ones over the same box (the natural operation on narrower
+// operands, intersected with the mean value form), natural bounds over a box within natural
+// bounds over a box around it (each operation is inclusion-monotone). Where an argument is
+// undefined over a whole box (a square root of a wholly negative value) its bounds there may be
+// the whole line while the known ones are not; skipped, it bounds the min more tightly — still
+// soundly, as the point values ignore an undefined argument (ScalarOps::min keeps its first
+// operand). With `steps`, each step's bounds are kept there (an argument's own, before it is
+// folded in; a skipped argument's steps as known).
+template <typename Ops>
+typename Ops::T runSkipping(const Ops& ops, const ExprProgram& prog, const typename Ops::T& x, const typename Ops::T& y,
+                            const typename Ops::T& z, const BInterval* known, BInterval* steps = nullptr) {
+    using T = typename Ops::T;
+    RawStack<T> raw;
+    T* const stack = raw.slots();
     int top = -1;
     for (std::size_t i = 0; i < prog.code.size(); ++i) {
         const std::int32_t end = prog.argumentEnd[i];
         if (end >= 0) {
-            const Centred& before = stack[top]; // the arguments before this one, folded
-            const BInterval& arg = natural[end];
-            if (prog.foldAfter[std::size_t(end)] == ExprFold::Min ? before.v.upper() < arg.lower() : before.v.lower() > arg.upper()) {
+            const BInterval& before = boundsOf(stack[top]); // the arguments before this one, folded
+            const BInterval& arg = known[end];
+            if (prog.foldAfter[std::size_t(end)] == ExprFold::Min ? before.upper() < arg.lower() : before.lower() > arg.upper()) {
+                if (steps) std::copy(known + i, known + end + 1, steps + i);
                 i = std::size_t(end);
                 continue;
             }
         }
         step(ops, prog, prog.code[i], stack, top, x, y, z, true);
+        if (steps) steps[i] = boundsOf(stack[top]);
         switch (prog.foldAfter[i]) {
         case ExprFold::None: break;
         case ExprFold::Min: --top; stack[top] = ops.min(stack[top], stack[top + 1]); break;
@@ -548,21 +560,32 @@ namespace {
 
 BInterval boxSide(const Box3& box, std::size_t a) { return BInterval(box.min[a], box.max[a]); }
 
-// The natural bounds of every step of one program over one box, as evalNaturalBoundsKept left them
-// on this thread.
+// The natural bounds of every step of one program over one box.
 struct KeptSteps {
     std::uint64_t program = 0;
     Box3 box;
     std::vector<BInterval> steps;
+    bool covers(const ExprProgram& prog, const Box3& b) const {
+        return program == prog.id && prog.id != 0 && steps.size() == prog.code.size() && box.min.x <= b.min.x &&
+               box.min.y <= b.min.y && box.min.z <= b.min.z && box.max.x >= b.max.x && box.max.y >= b.max.y && box.max.z >= b.max.z;
+    }
 };
-thread_local KeptSteps tKept;
+// This thread's: the last box's (evalBoundsAfterNatural reads them), and those of the box
+// around the boxes asked now (keepNaturalStepsAround).
+thread_local KeptSteps tKept, tAround;
 
 // Rounding upward must be on.
+BInterval naturalSteps(const ExprProgram& prog, const Box3& box, KeptSteps& into, const KeptSteps* around) {
+    into.steps.resize(prog.code.size());
+    into.program = prog.id;
+    into.box = box;
+    const BInterval x = boxSide(box, 0), y = boxSide(box, 1), z = boxSide(box, 2);
+    if (around) return runSkipping(IntervalOps{}, prog, x, y, z, around->steps.data(), into.steps.data());
+    return run(IntervalOps{}, prog, x, y, z, into.steps.data());
+}
+
 BInterval naturalKept(const ExprProgram& prog, const Box3& box) {
-    tKept.steps.resize(prog.code.size());
-    tKept.program = prog.id;
-    tKept.box = box;
-    return run(IntervalOps{}, prog, boxSide(box, 0), boxSide(box, 1), boxSide(box, 2), tKept.steps.data());
+    return naturalSteps(prog, box, tKept, tAround.covers(prog, box) ? &tAround : nullptr);
 }
 
 // Rounding upward must be on. Skips min and max arguments where `natural` (every step's) is given.
@@ -575,7 +598,7 @@ Interval centred(const ExprProgram& prog, const Box3& box, const BInterval* natu
         var[a] = Centred{boxSide(box, a), BInterval(c[a]), {}};
     }
     const CentredOps ops(halfWidth);
-    return toInterval((natural ? runCentredSkipping(ops, prog, var[0], var[1], var[2], natural) : run(ops, prog, var[0], var[1], var[2])).v);
+    return toInterval((natural ? runSkipping(ops, prog, var[0], var[1], var[2], natural) : run(ops, prog, var[0], var[1], var[2])).v);
 }
 
 bool hasArgumentsToSkip(const ExprProgram& prog) {
@@ -605,10 +628,15 @@ Interval evalNaturalBoundsKept(const ExprProgram& prog, const Box3& box) {
 Interval evalBoundsAfterNatural(const ExprProgram& prog, const Box3& box) {
     ProtectedInterval::traits_type::rounding upward;
     if (!hasArgumentsToSkip(prog)) return centred(prog, box, nullptr);
-    const bool kept = tKept.program == prog.id && prog.id != 0 && tKept.box.min == box.min && tKept.box.max == box.max &&
-                      tKept.steps.size() == prog.code.size();
+    const bool kept = tKept.covers(prog, box) && tKept.box.min == box.min && tKept.box.max == box.max;
     if (!kept) naturalKept(prog, box);
     return centred(prog, box, tKept.steps.data());
+}
+
+void keepNaturalStepsAround(const ExprProgram& prog, const Box3& around) {
+    if (!hasArgumentsToSkip(prog)) return;
+    ProtectedInterval::traits_type::rounding upward;
+    naturalSteps(prog, around, tAround, nullptr);
 }
 
 } // namespace vdbsurf

@@ -26,6 +26,11 @@ bool ExpressionField::mayStraddle(const Box3& box, double iso) const {
     return straddles(evalBoundsAfterNatural(mProgram, box), iso);
 }
 
+void ExpressionField::mayStraddleWithin(const Box3& around, const Box3* boxes, std::size_t n, double iso, std::uint8_t* out) const {
+    if (n > 1) keepNaturalStepsAround(mProgram, around);
+    for (std::size_t i = 0; i < n; ++i) out[i] = mayStraddle(boxes[i], iso);
+}
+
 bool ExpressionField::mayHoldOtherSide(const Box3& box, bool inside, double iso) const {
     return mayBeOtherSide(inside, evalNaturalBoundsKept(mProgram, box), iso, Inside::Below) &&
            mayBeOtherSide(inside, evalBoundsAfterNatural(mProgram, box), iso, Inside::Below);

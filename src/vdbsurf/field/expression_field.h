@@ -19,6 +19,10 @@ public:
     // The natural bounds first: where they already rule the iso value out (most boxes away from
     // the surface), the derivatives of evalBounds are not needed.
     bool mayStraddle(const Box3& box, double iso) const override;
+    // The natural bounds of every step over `around` first: in the boxes inside it, the min and
+    // max arguments those show cannot matter are skipped (cells beside one spike of a union of
+    // twenty evaluate a fifth of it).
+    void mayStraddleWithin(const Box3& around, const Box3* boxes, std::size_t n, double iso, std::uint8_t* out) const override;
     bool mayHoldOtherSide(const Box3& box, bool inside, double iso) const override;
     Inside inside() const override { return Inside::Below; }
     Box3 domain() const override { return mBox; }

@@ -112,6 +112,14 @@ public:
     // straddles(bounds(box), iso), the same answer, which a field may give sooner (a grid: from
     // the range of the voxels the box reads, before the interpolant's exact range).
     virtual bool mayStraddle(const Box3& box, double iso) const { return straddles(bounds(box), iso); }
+    // mayStraddle of each of n boxes that all lie inside `around` (a block's children, a node's
+    // octants), in out[i]: the same answers, which a field may give for less when it has bounded
+    // the box around them first (a formula: its min and max arguments that cannot matter there
+    // are skipped in them; see ExpressionField).
+    virtual void mayStraddleWithin(const Box3& around, const Box3* boxes, std::size_t n, double iso, std::uint8_t* out) const {
+        (void)around;
+        for (std::size_t i = 0; i < n; ++i) out[i] = mayStraddle(boxes[i], iso);
+    }
     // mayBeOtherSide(inside, bounds(box), iso, this->inside()), the same answer, which a field
     // may give sooner (a formula: from its cheaper natural bounds where those suffice).
     virtual bool mayHoldOtherSide(const Box3& box, bool inside, double iso) const {

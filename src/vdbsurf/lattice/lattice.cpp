@@ -67,15 +67,21 @@ std::vector<Coord> straddlingChildren(const Field& field, const LatticeFrame& fr
             CoordBBox box(parents[i], parents[i].offsetBy(size - 1));
             box.intersect(range);
             const Coord lo = box.min() & ~(child - 1), hi = box.max() & ~(child - 1);
-            std::uint64_t n = 0;
+            std::vector<Coord> children;
+            std::vector<Box3> boxes;
             for (int x = lo.x(); x <= hi.x(); x += child)
                 for (int y = lo.y(); y <= hi.y(); y += child)
                     for (int z = lo.z(); z <= hi.z(); z += child) {
-                        ++n;
                         CoordBBox cb(Coord(x, y, z), Coord(x, y, z).offsetBy(child - 1));
                         cb.intersect(range);
-                        if (field.mayStraddle(cellsBox(frame, cb), iso)) kept[i].emplace_back(x, y, z);
+                        children.emplace_back(x, y, z);
+                        boxes.push_back(cellsBox(frame, cb));
                     }
+            std::vector<std::uint8_t> straddle(children.size());
+            field.mayStraddleWithin(cellsBox(frame, box), boxes.data(), boxes.size(), iso, straddle.data());
+            for (std::size_t c = 0; c < children.size(); ++c)
+                if (straddle[c]) kept[i].push_back(children[c]);
+            const std::uint64_t n = children.size();
             count += n;
             survivors += kept[i].size();
         }
@@ -176,6 +182,9 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     const std::size_t stride = std::max<std::size_t>(1, blocks.size() / 4096);
     auto examine = [&](const tbb::blocked_range<std::size_t>& r, bool sample) {
         std::array<double, kBlockNodeCount> vals;
+        std::vector<Box3> scratchBoxes;
+        std::vector<int> scratchBits;
+        std::vector<std::uint8_t> scratchOut;
         // Per node column (x, y), at x + kBlockNodes * y as in the sample: bit z set when node
         // (x, y, z) is inside / exactly at iso / NaN.
         std::array<std::uint16_t, kBlockNodes * kBlockNodes> inside, atIso, isNan;
@@ -228,19 +237,31 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             // first (bit gx + 4 gy + 16 gz): a cell outside every straddling group cannot hold
             // surface. Each cell's own question is what costs (a long formula's bounds take
             // thousands of operations), and most cells of a block lie a few cells off the surface.
+            // Asked together within the block (and a group's cells within the group): a field
+            // may reuse its bounds over the box around them (Field::mayStraddleWithin).
             std::uint64_t groups = 0;
-            if (!cornersExact)
+            if (!cornersExact) {
+                std::vector<Box3>& boxes = scratchBoxes;
+                std::vector<int>& bits = scratchBits;
+                boxes.clear();
+                bits.clear();
                 for (int gx = lo.x() / 2; gx <= hi.x() / 2; ++gx)
                     for (int gy = lo.y() / 2; gy <= hi.y() / 2; ++gy)
                         for (int gz = lo.z() / 2; gz <= hi.z() / 2; ++gz) {
                             CoordBBox cb(o.offsetBy(2 * gx, 2 * gy, 2 * gz), o.offsetBy(2 * gx + 1, 2 * gy + 1, 2 * gz + 1));
                             cb.intersect(box);
-                            if (field.mayStraddle(cellsBox(frame, cb), iso)) groups |= std::uint64_t(1) << (gx + 4 * gy + 16 * gz);
+                            boxes.push_back(cellsBox(frame, cb));
+                            bits.push_back(gx + 4 * gy + 16 * gz);
                         }
-            std::array<std::uint64_t, kLeafDim> words{};
+                scratchOut.resize(boxes.size());
+                field.mayStraddleWithin(cellsBox(frame, box), boxes.data(), boxes.size(), iso, scratchOut.data());
+                for (std::size_t g = 0; g < boxes.size(); ++g)
+                    if (scratchOut[g]) groups |= std::uint64_t(1) << bits[std::size_t(g)];
+            }
+            // Rows of cells along z (bit z of rows[x][y]) whose corners show a crossing.
+            std::array<std::array<unsigned, kLeafDim>, kLeafDim> rows{};
             std::uint32_t examined = 0;
-            for (int x = lo.x(); x <= hi.x(); ++x) {
-                std::uint64_t word = 0;
+            for (int x = lo.x(); x <= hi.x(); ++x)
                 for (int y = lo.y(); y <= hi.y(); ++y) {
                     // The columns (x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1).
                     const std::size_t a = std::size_t(x + kBlockNodes * y), b = a + kBlockNodes;
@@ -250,17 +271,39 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
                     const unsigned anyIn = (orIn | (orIn >> 1)) & 0xFFu;
                     const unsigned allIn = (andIn & (andIn >> 1)) & 0xFFu;
                     const unsigned anyEq = (orEq | (orEq >> 1)) & 0xFFu;
-                    unsigned row = ((anyIn & ~allIn) | (anyEq & ~anyIn)) & zMask;
-                    if (!cornersExact) {
-                        // The field may cross iso inside a cell whose corners agree: ask its bounds.
-                        for (int z = lo.z(); z <= hi.z(); ++z) {
-                            if (row & (1u << z) || !(groups >> (x / 2 + 4 * (y / 2) + 16 * (z / 2)) & 1u)) continue;
-                            if (field.mayStraddle(frame.cellBox({o.x() + x, o.y() + y, o.z() + z}), iso)) row |= 1u << z;
-                        }
-                    }
-                    word |= std::uint64_t(row) << (8 * y);
+                    rows[std::size_t(x)][std::size_t(y)] = ((anyIn & ~allIn) | (anyEq & ~anyIn)) & zMask;
                     examined += std::uint32_t(__builtin_popcount(zMask));
                 }
+            // The field may cross iso inside a cell whose corners agree: its bounds are asked,
+            // where its group's straddle.
+            for (std::uint64_t left = groups; left; left &= left - 1) {
+                const int g = __builtin_ctzll(left), gx = g % 4, gy = (g / 4) % 4, gz = g / 16;
+                std::vector<Box3>& boxes = scratchBoxes;
+                std::vector<int>& bits = scratchBits;
+                boxes.clear();
+                bits.clear();
+                for (int x = std::max(2 * gx, lo.x()); x <= std::min(2 * gx + 1, hi.x()); ++x)
+                    for (int y = std::max(2 * gy, lo.y()); y <= std::min(2 * gy + 1, hi.y()); ++y)
+                        for (int z = std::max(2 * gz, lo.z()); z <= std::min(2 * gz + 1, hi.z()); ++z) {
+                            if (rows[std::size_t(x)][std::size_t(y)] & (1u << z)) continue;
+                            boxes.push_back(frame.cellBox({o.x() + x, o.y() + y, o.z() + z}));
+                            bits.push_back(x + 8 * y + 64 * z);
+                        }
+                if (boxes.empty()) continue;
+                CoordBBox cb(o.offsetBy(2 * gx, 2 * gy, 2 * gz), o.offsetBy(2 * gx + 1, 2 * gy + 1, 2 * gz + 1));
+                cb.intersect(box);
+                scratchOut.resize(boxes.size());
+                field.mayStraddleWithin(cellsBox(frame, cb), boxes.data(), boxes.size(), iso, scratchOut.data());
+                for (std::size_t c = 0; c < boxes.size(); ++c)
+                    if (scratchOut[c]) {
+                        const int bit = bits[c];
+                        rows[std::size_t(bit % 8)][std::size_t((bit / 8) % 8)] |= 1u << (bit / 64);
+                    }
+            }
+            std::array<std::uint64_t, kLeafDim> words{};
+            for (int x = lo.x(); x <= hi.x(); ++x) {
+                std::uint64_t word = 0;
+                for (int y = lo.y(); y <= hi.y(); ++y) word |= std::uint64_t(rows[std::size_t(x)][std::size_t(y)]) << (8 * y);
                 words[std::size_t(x)] = word;
             }
             std::array<std::uint64_t, kLeafDim> withData = words;
