@@ -359,18 +359,6 @@ private:
     }
 };
 
-// The region's collapses, most of them in parallel: each block of blockCells^3 lattice cells on
-// its own, then each block of a grid shifted by half a block (what lay along the first blocks'
-// faces lies inside these), then the whole region once more for what is left (where the two
-// grids' faces cross). A block's run holds the triangles whose corners all lie in the block; a
-// vertex with a triangle beyond the block is locked there (an open border of the block's
-// triangles), and such triangles are its neighbours' fixed edges. Every triangle a block's run
-// reads or changes then has a corner in the block, and none another block's run changes: a
-// triangle that one changes has a vertex collapsing there, all of whose triangles lie in that
-// block. So the blocks' runs are independent, and each is the serial greedy on its part. Later runs
-// take the quadrics and removed vertices with them, and try the vertices no run has tried as they
-// now are (the blocks' borders, and those around a collapse since), cheapest first. The blocks
-// are fixed by the lattice, not by the threads: the output does not depend on their number.
 // One grid of blocks (its corner at `offset` cells from the frame's origin) over the region as
 // it is. `settled`: vertices tried as they are, which no run needs to try again (updated).
 std::uint64_t collapseInBlocks(ThinSimplifier& whole, const Field& field, const ThinSimplifyOptions& options, const LatticeFrame& frame,
@@ -516,6 +504,18 @@ std::uint64_t collapseInBlocks(ThinSimplifier& whole, const Field& field, const 
     return collapses;
 }
 
+// The region's collapses, most of them in parallel: each block of blockCells^3 lattice cells on
+// its own, then each block of a grid shifted by half a block (what lay along the first blocks'
+// faces lies inside these), then the whole region once more for what is left (where the two
+// grids' faces cross). A block's run holds the triangles whose corners all lie in the block; a
+// vertex with a triangle beyond the block is locked there (an open border of the block's
+// triangles), and such triangles are its neighbours' fixed edges. Every triangle a block's run
+// reads or changes then has a corner in the block, and none another block's run changes: a
+// triangle that one changes has a vertex collapsing there, all of whose triangles lie in that
+// block. So the blocks' runs are independent, and each is the serial greedy on its part. Later runs
+// take the quadrics and removed vertices with them, and try the vertices no run has tried as they
+// now are (the blocks' borders, and those around a collapse since), cheapest first. The blocks
+// are fixed by the lattice, not by the threads: the output does not depend on their number.
 std::uint64_t collapseRegion(ThinSimplifier& whole, const Field& field, const ThinSimplifyOptions& options, const LatticeFrame& frame) {
     const std::size_t n = whole.pos.size();
     whole.quadric = whole.quadricsOfTriangles();
