@@ -25,8 +25,7 @@ std::vector<EdgeRuns::Run> EdgeRuns::runsAlong(const Vec3d& pa, const Vec3d& pb,
                                                std::uint64_t& examined, std::uint64_t& evaluated) const {
     n = int(std::floor(length(pb - pa) * mSteps / mFrame.h)) + 1;
     std::vector<Run> runs{{insideA, 0, 0}};
-    const Vec3d lo(std::min(pa.x, pb.x), std::min(pa.y, pb.y), std::min(pa.z, pb.z));
-    const Vec3d hi(std::max(pa.x, pb.x), std::max(pa.y, pb.y), std::max(pa.z, pb.z));
+    const Vec3d lo = vmin(pa, pb), hi = vmax(pa, pb);
     if (insideA == insideB && !mField.mayStraddle(Box3{lo, hi}, mIso)) {
         runs.back().last = n;
         return runs;

@@ -89,9 +89,9 @@ public:
     // stay), so that the link condition sees every edge a collapse could double.
     std::vector<std::vector<std::uint32_t>> fixedNeighbours;
 
-    // Carried from an earlier run over part of the region, or empty (then: from the triangles,
-    // none, none): per vertex its quadric, per triangle the removed vertices it answers for, per
-    // vertex whether it was removed.
+    // Set before run() (collapseRegion: from the triangles, none, none; a block or a later run:
+    // carried from the runs before): per vertex its quadric, per triangle the removed vertices it
+    // answers for, per vertex whether it was removed.
     std::vector<Quadric> quadric;
     std::vector<std::vector<std::uint32_t>> removed;
     std::vector<std::uint8_t> dead;
@@ -123,14 +123,13 @@ public:
         for (std::uint32_t t = 0; t < triangles.size(); ++t)
             if (triangles[t].alive)
                 for (std::uint32_t v : triangles[t].v) fan[v].push_back(t);
+        if (quadric.size() != n || dead.size() != n || removed.size() != triangles.size())
+            throw std::logic_error("thin simplification: a run's quadrics, removed vertices or dead marks are not set");
         lockBordersAndPinches();
-        dead.resize(n, 0);
         touched.assign(n, 0);
         mStamp.assign(n, 0);
         mOptions.assign(n, {});
         mTried.assign(n, 0);
-        removed.resize(triangles.size());
-        if (quadric.empty()) quadric = quadricsOfTriangles();
         for (std::uint32_t u = 0; u < n; ++u)
             if (!settled || !(*settled)[u]) pushAround(u);
         std::uint64_t collapses = 0, pops = 0;

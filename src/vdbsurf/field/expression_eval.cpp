@@ -566,8 +566,7 @@ struct KeptSteps {
     Box3 box;
     std::vector<BInterval> steps;
     bool covers(const ExprProgram& prog, const Box3& b) const {
-        return program == prog.id && prog.id != 0 && steps.size() == prog.code.size() && box.min.x <= b.min.x &&
-               box.min.y <= b.min.y && box.min.z <= b.min.z && box.max.x >= b.max.x && box.max.y >= b.max.y && box.max.z >= b.max.z;
+        return program == prog.id && prog.id != 0 && steps.size() == prog.code.size() && box.contains(b.min) && box.contains(b.max);
     }
 };
 // This thread's: the last box's (evalBoundsAfterNatural reads them), and those of the box
