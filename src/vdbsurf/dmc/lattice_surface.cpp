@@ -18,7 +18,6 @@
 #include <bitset>
 #include <chrono>
 #include <stdexcept>
-#include <unordered_map>
 
 namespace vdbsurf {
 
@@ -192,14 +191,28 @@ struct LatticeSurface::Impl {
         : field(f), lattice(l), deformation(d && !d->empty() ? d : nullptr), options(o),
           linear(f.edgesAreLinear(l.frame)), leafManager(*l.cells), start(std::chrono::steady_clock::now()) {}
 
-    // Leaf pointer -> index in leafManager order, for each leaf's neighbour table.
-    std::unordered_map<const MaskLeaf*, std::int32_t> indexOf;
+    // Leaf pointer -> index in leafManager order, for each leaf's neighbour table: (pointer,
+    // index) sorted by pointer. (A hash map of them was built serially, a node allocated per
+    // leaf, at every first pass and rebuild: about 0.4 ms each on the armadillo.)
+    std::vector<std::pair<const MaskLeaf*, std::int32_t>> leafIndex;
 
-    // The indices of the leaves beside w's (w.neighbor), from indexOf.
+    void indexLeaves() {
+        const std::size_t leafCount = leafManager.leafCount();
+        leafIndex.resize(leafCount);
+        for (std::size_t i = 0; i < leafCount; ++i) leafIndex[i] = {&leafManager.leaf(i), std::int32_t(i)};
+        std::sort(leafIndex.begin(), leafIndex.end());
+    }
+    std::int32_t indexOf(const MaskLeaf* leaf) const {
+        const auto it = std::lower_bound(leafIndex.begin(), leafIndex.end(), std::make_pair(leaf, std::int32_t(-1)));
+        if (it == leafIndex.end() || it->first != leaf) throw std::logic_error("lattice surface: a leaf missing from the leaf index");
+        return it->second;
+    }
+
+    // The indices of the leaves beside w's (w.neighbor), from the leaf index.
     void linkNeighbours(LeafWork& w, openvdb::tree::ValueAccessor<const CellTree, false>& cells) const {
         for (int d = 0; d < 8; ++d) {
             const MaskLeaf* nb = cells.probeConstLeaf(nodeBlock(w.origin, d));
-            w.neighbor[std::size_t(d)] = nb ? indexOf.at(nb) : -1;
+            w.neighbor[std::size_t(d)] = nb ? indexOf(nb) : -1;
         }
     }
 
@@ -241,10 +254,10 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
 
     const std::size_t leafCount = leafManager.leafCount();
     if (!only) {
-        resizePrefaulted(work, leafCount); // (~300 bytes a leaf of fresh memory)
-        indexOf.clear();
-        indexOf.reserve(leafCount * 2);
-        for (std::size_t i = 0; i < leafCount; ++i) indexOf.emplace(&leafManager.leaf(i), std::int32_t(i));
+        // (~300 bytes a leaf of fresh memory; room for a few more, which a rebuild may add.)
+        reservePrefaulted(work, leafCount + leafCount / 16 + 8);
+        resizePrefaulted(work, leafCount);
+        indexLeaves();
     }
     const std::size_t tasks = only ? only->size() : leafCount;
 
@@ -572,42 +585,67 @@ void LatticeSurface::rebuildAround(const std::vector<Vec3i>& nodes, const Lattic
     if (im.meshTaken) throw std::logic_error("LatticeSurface: rebuilt after the mesh was taken");
     // The lattice may have gained cells around moved nodes, some in new leaves: carry the work
     // of every leaf that existed over to the new leaf order; new leaves start empty.
-    std::unordered_map<Coord, std::size_t> oldIndex;
-    oldIndex.reserve(im.work.size() * 2);
-    for (std::size_t li = 0; li < im.work.size(); ++li) oldIndex.emplace(im.work[li].origin, li);
+    // Cells are only ever added, so the old leaves are all still there, and in the same order
+    // (the leaf manager lists leaves in the tree's order, a fixed order of their origins): one
+    // walk back along both lists matches them, moving each old leaf's work to its new place (at
+    // or after its old one) in the same array. (Hash maps of origins and a fresh array cost
+    // 1.5 ms of the armadillo's sharp pass, serially.)
     im.leafManager.rebuild();
-    const std::size_t leafCount = im.leafManager.leafCount();
-    std::vector<LeafWork> work(leafCount);
+    const std::size_t leafCount = im.leafManager.leafCount(), oldCount = im.work.size();
+    if (leafCount < oldCount) throw std::logic_error("lattice surface: a leaf of the lattice went missing before a rebuild");
+    im.work.resize(leafCount);
     std::vector<std::uint8_t> isDirty(leafCount, 0);
-    im.indexOf.clear();
-    im.indexOf.reserve(leafCount * 2);
-    for (std::size_t li = 0; li < leafCount; ++li) {
+    std::vector<std::int32_t> newIndex(oldCount); // old leaf index -> new
+    std::vector<std::size_t> added;               // new leaves, descending
+    std::size_t old = oldCount; // old leaves [0, old) not yet placed
+    for (std::size_t li = leafCount; li-- > 0;) {
         const MaskLeaf& leaf = im.leafManager.leaf(li);
-        im.indexOf.emplace(&leaf, std::int32_t(li));
-        const auto it = oldIndex.find(leaf.origin());
-        if (it == oldIndex.end()) isDirty[li] = 1;
-        else work[li] = std::move(im.work[it->second]);
+        LeafWork& w = im.work[li];
+        if (old > 0 && im.work[old - 1].origin == leaf.origin()) {
+            newIndex[--old] = std::int32_t(li);
+            if (old != li) w = std::move(im.work[old]);
+        } else {
+            w = LeafWork();
+            isDirty[li] = 1;
+            added.push_back(li);
+        }
         // A leaf that gained cells has new cell ranks.
-        if (leaf.onVoxelCount() != work[li].config.size()) isDirty[li] = 1;
+        if (leaf.onVoxelCount() != w.config.size()) isDirty[li] = 1;
     }
-    im.work = std::move(work);
+    if (old != 0) throw std::logic_error("lattice surface: a leaf of the lattice went missing before a rebuild");
+    im.indexLeaves();
     for (const Vec3i& n : nodes)
         for (int d = 0; d < 8; ++d) {
             const Coord cell(n.x - (d & 1), n.y - ((d >> 1) & 1), n.z - ((d >> 2) & 1));
             if (!im.lattice.cellRange.isInside(cell)) continue;
-            if (const MaskLeaf* leaf = im.lattice.cells->probeConstLeaf(cell)) isDirty[std::size_t(im.indexOf.at(leaf))] = 1;
+            if (const MaskLeaf* leaf = im.lattice.cells->probeConstLeaf(cell)) isDirty[std::size_t(im.indexOf(leaf))] = 1;
         }
     std::vector<std::size_t> dirty;
     for (std::size_t li = 0; li < leafCount; ++li)
         if (isDirty[li]) dirty.push_back(li);
-    // Neighbour tables hold leaf indices, which moved: the clean leaves' are renewed here, the
-    // dirty leaves' by the first pass.
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
-        openvdb::tree::ValueAccessor<const CellTree, false> acc(*im.lattice.cells);
-        for (std::size_t li = r.begin(); li < r.end(); ++li) {
-            if (!isDirty[li]) im.linkNeighbours(im.work[li], acc);
+    // Neighbour tables hold leaf indices, which moved where leaves were added: the clean leaves'
+    // are renumbered here, and those beside an added leaf told of it; the dirty leaves' are made
+    // anew by the first pass. (Probing every leaf's neighbours again cost 0.7 ms on the armadillo
+    // for one added leaf.)
+    if (!added.empty()) {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 256), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t li = r.begin(); li < r.end(); ++li) {
+                if (isDirty[li]) continue;
+                for (std::int32_t& nb : im.work[li].neighbor)
+                    if (nb >= 0) nb = newIndex[std::size_t(nb)];
+            }
+        });
+        for (const std::size_t li : added) {
+            const Coord origin = im.leafManager.leaf(li).origin();
+            for (int d = 0; d < 8; ++d) { // the leaf whose neighbour d this one is
+                const Coord below = origin.offsetBy(-8 * (d & 1), -8 * ((d >> 1) & 1), -8 * ((d >> 2) & 1));
+                const MaskLeaf* leaf = im.lattice.cells->probeConstLeaf(below);
+                if (!leaf) continue;
+                const std::size_t bi = std::size_t(im.indexOf(leaf));
+                if (!isDirty[bi]) im.work[bi].neighbor[std::size_t(d)] = std::int32_t(li);
+            }
         }
-    });
+    }
     im.deformation = deformation.empty() ? nullptr : &deformation;
     im.options.normals = false; // the sharp pass, their only reader, is done
     im.firstPass(&dirty);

@@ -1,6 +1,10 @@
 #include "vdbsurf/mesh/mesh.h"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
 #include <algorithm>
+#include <functional>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -15,9 +19,14 @@ void Mesh::addPolygon(const std::uint32_t* vs, std::size_t n) {
 }
 
 std::size_t Mesh::countPolygonsOfSize(std::uint32_t n) const {
-    std::size_t count = 0;
-    for (std::size_t p = 0; p < polygonCount(); ++p) count += polygonSize(p) == n;
-    return count;
+    // (In parallel: the mesher counts triangles and quads of every mesh it makes.)
+    return tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, polygonCount(), 16384), std::size_t(0),
+        [&](const tbb::blocked_range<std::size_t>& r, std::size_t count) {
+            for (std::size_t p = r.begin(); p != r.end(); ++p) count += polygonSize(p) == n;
+            return count;
+        },
+        std::plus<std::size_t>());
 }
 
 Mesh keepPolygons(const Mesh& mesh, const std::vector<std::uint8_t>& keep) {
