@@ -780,6 +780,26 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
             std::copy(im.work[li].vertices.begin(), im.work[li].vertices.end(), mesh.points.begin() + im.work[li].vertexBase);
     });
 
+    std::vector<std::pair<std::uint32_t, Vec3i>> atNode; // (vertex, node), in leaf order
+    std::vector<std::uint8_t> rounded;                    // per entry of atNode: put there by rounding
+    for (const LeafWork& w : im.work) {
+        // (Both lists ascend by vertex.)
+        auto r = w.roundedVertices.begin();
+        for (const auto& [local, node] : w.nodeVertices) {
+            atNode.emplace_back(w.vertexBase + local, Vec3i(node.x(), node.y(), node.z()));
+            while (r != w.roundedVertices.end() && *r < local) ++r;
+            rounded.push_back(r != w.roundedVertices.end() && *r == local);
+        }
+    }
+    // The polygons through a vertex the weld may merge, found as they are made (a scan of the
+    // whole mesh for them was a tenth of the weld), unless the fit below changes the polygons.
+    std::vector<std::uint8_t> mayWeld; // per vertex
+    std::vector<std::vector<std::uint32_t>> weldPolygons; // per leaf, ascending
+    if (!beforeWeld && !atNode.empty()) {
+        mayWeld = prefaultedVector<std::uint8_t>(vtotal, 0);
+        for (const std::uint32_t v : weldedVertices(atNode)) mayWeld[v] = 1;
+        weldPolygons.resize(leafCount);
+    }
     Progress progress("surface polygons", leafCount, im.options.cancel);
     // Second pass: polygons with global vertex numbers (all vertices are in place: quads may be
     // split along their shorter diagonal).
@@ -788,6 +808,7 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
             const MaskLeaf& leaf = im.leafManager.leaf(li);
             const LeafWork& w = im.work[li];
             std::uint32_t f = w.faceBase, idx = w.indexBase;
+            std::vector<std::uint32_t>* weldHere = weldPolygons.empty() ? nullptr : &weldPolygons[li];
             std::size_t rank = 0;
             for (auto it = leaf.getValueMask().beginOn(); it; ++it, ++rank) {
                 const unsigned config = w.config[rank];
@@ -804,11 +825,15 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
                         ids[i] = im.work[v.leaf].vertexBase + v.local;
                     }
                     auto emit = [&](std::initializer_list<std::uint32_t> vs) {
-                        for (std::uint32_t v : vs) mesh.indices[idx++] = v;
+                        bool weld = false;
+                        for (std::uint32_t v : vs) mesh.indices[idx++] = v, weld = weld || (weldHere && mayWeld[v]);
+                        if (weld) weldHere->push_back(f);
                         mesh.offsets[++f] = idx;
                     };
                     if (whole && k > 4) {
-                        for (std::uint32_t i = 0; i < k; ++i) mesh.indices[idx++] = ids[i];
+                        bool weld = false;
+                        for (std::uint32_t i = 0; i < k; ++i) mesh.indices[idx++] = ids[i], weld = weld || (weldHere && mayWeld[ids[i]]);
+                        if (weld) weldHere->push_back(f);
                         mesh.offsets[++f] = idx;
                     } else if (k == 3) emit({ids[0], ids[1], ids[2]});
                     else if (k == 4 && !tri) emit({ids[0], ids[1], ids[2], ids[3]});
@@ -827,17 +852,6 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
         }
     });
     if (im.options.cancel) im.options.cancel->check();
-    std::vector<std::pair<std::uint32_t, Vec3i>> atNode; // (vertex, node), in leaf order
-    std::vector<std::uint8_t> rounded;                    // per entry of atNode: put there by rounding
-    for (const LeafWork& w : im.work) {
-        // (Both lists ascend by vertex.)
-        auto r = w.roundedVertices.begin();
-        for (const auto& [local, node] : w.nodeVertices) {
-            atNode.emplace_back(w.vertexBase + local, Vec3i(node.x(), node.y(), node.z()));
-            while (r != w.roundedVertices.end() && *r < local) ++r;
-            rounded.push_back(r != w.roundedVertices.end() && *r == local);
-        }
-    }
     // The leaves' own arrays (several a leaf) are done with: freed now and in parallel, they
     // were a serial tail of the mesher, and the weld below reuses their memory.
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
@@ -851,7 +865,10 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
         beforeWeld(mesh, toWeld);
         for (std::size_t v = before; v < mesh.points.size(); ++v) added.push_back(std::uint32_t(v));
     }
-    const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added);
+    std::vector<std::uint32_t> polygonsToWeld;
+    for (const std::vector<std::uint32_t>& p : weldPolygons) polygonsToWeld.insert(polygonsToWeld.end(), p.begin(), p.end());
+    weldPolygons.clear();
+    const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added, mayWeld.empty() ? nullptr : &polygonsToWeld);
     im.stats.weldedVertices = welding.weldedVertices;
     im.stats.collapsedPolygons = welding.collapsedPolygons;
     im.stats.splitVertices = welding.splitVertices;

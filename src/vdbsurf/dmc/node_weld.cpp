@@ -398,7 +398,8 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
 // `suspects`: the vertices that may share a point with another when the weld is done (see
 // weldNodeVertices), numbered as before it; they are separated before the folds are closed.
 NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, const std::vector<std::uint32_t>& repOf,
-                          const std::vector<std::uint8_t>& rounded, std::vector<std::uint32_t> suspects) {
+                          const std::vector<std::uint8_t>& rounded, std::vector<std::uint32_t> suspects,
+                          const std::vector<std::uint32_t>* polygonsToWeld) {
     NodeWeldStats stats;
     if (atNode.empty()) {
         stats.separatedVertices = separateCoincidentPoints(mesh, std::move(suspects));
@@ -406,10 +407,12 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
     }
 
     // Only polygons through a vertex on a node can change: the attempts below redo just those.
-    std::vector<std::uint8_t> onNode = prefaultedVector<std::uint8_t>(mesh.points.size(), 0);
-    for (const auto& [v, node] : atNode) onNode[v] = 1;
     std::vector<std::uint32_t> candidates; // ascending
-    {
+    if (polygonsToWeld) {
+        candidates = *polygonsToWeld;
+    } else {
+        std::vector<std::uint8_t> onNode = prefaultedVector<std::uint8_t>(mesh.points.size(), 0);
+        for (const auto& [v, node] : atNode) onNode[v] = 1;
         std::vector<std::vector<std::uint32_t>> parts(chunkCount(mesh.polygonCount()));
         forEachChunk(mesh.polygonCount(), [&](std::size_t c, std::size_t b, std::size_t e) {
             for (std::size_t f = b; f < e; ++f) {
@@ -524,8 +527,20 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
 
 } // namespace
 
+std::vector<std::uint32_t> weldedVertices(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+    std::vector<std::uint32_t> out;
+    if (atNode.empty()) return out;
+    std::vector<std::uint32_t> listed;
+    representatives(atNode, listed);
+    for (std::size_t k = 0; k < atNode.size(); ++k)
+        if (listed[k] >= 2) out.push_back(atNode[k].first);
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
-                               const std::vector<std::uint8_t>& rounded, const std::vector<std::uint32_t>& alsoSuspect) {
+                               const std::vector<std::uint8_t>& rounded, const std::vector<std::uint32_t>& alsoSuspect,
+                               const std::vector<std::uint32_t>* polygonsToWeld) {
     std::vector<std::uint32_t> suspects = alsoSuspect;
     for (const auto& [v, node] : atNode) suspects.push_back(v);
     if (atNode.empty()) {
@@ -547,7 +562,7 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         severalRep.push_back(repOf[k]);
         if (!rounded.empty()) severalRounded.push_back(rounded[k]);
     }
-    return weldSeveral(mesh, several, severalRep, severalRounded, std::move(suspects));
+    return weldSeveral(mesh, several, severalRep, severalRounded, std::move(suspects), polygonsToWeld);
 }
 
 } // namespace vdbsurf
