@@ -1223,7 +1223,22 @@ TEST_CASE("welding groups a node's vertices alike wherever its lattice coordinat
         REQUIRE(checkTopology(m).boundaryEdges > 0);
         const Vec3i n0(0, 0, 0), n6 = Vec3i(1, 1, 1) + offset, n3(0, 1, 0);
         const std::vector<std::pair<std::uint32_t, Vec3i>> atNode = {{0, n0}, {10, n6}, {8, n0}, {3, n3}, {6, n6}, {9, n0}, {11, n6}};
+        // The mesher hands the weld the polygons through these (the node of 3 has no other).
+        const std::vector<std::uint32_t> toWeld = verticesToWeld(atNode);
+        CHECK(toWeld == std::vector<std::uint32_t>{0, 6, 8, 9, 10, 11});
+        std::vector<std::uint32_t> through;
+        for (std::uint32_t f = 0; f < m.polygonCount(); ++f)
+            for (std::uint32_t i = m.offsets[f]; i < m.offsets[f + 1]; ++i)
+                if (std::binary_search(toWeld.begin(), toWeld.end(), m.indices[i])) {
+                    through.push_back(f);
+                    break;
+                }
+        Mesh listed = m;
+        CHECK(weldNodeVertices(listed, atNode, {}, {}, &through).weldedVertices == 4);
         CHECK(weldNodeVertices(m, atNode).weldedVertices == 4);
+        CHECK(listed.points == m.points);
+        CHECK(listed.offsets == m.offsets);
+        CHECK(listed.indices == m.indices);
         CHECK(m.points.size() == 8);
         CHECK(m.polygonCount() == 6);
         requireClosed(m);

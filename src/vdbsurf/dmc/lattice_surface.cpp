@@ -797,7 +797,7 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
     std::vector<std::vector<std::uint32_t>> weldPolygons; // per leaf, ascending
     if (!beforeWeld && !atNode.empty()) {
         mayWeld = prefaultedVector<std::uint8_t>(vtotal, 0);
-        for (const std::uint32_t v : weldedVertices(atNode)) mayWeld[v] = 1;
+        for (const std::uint32_t v : verticesToWeld(atNode)) mayWeld[v] = 1;
         weldPolygons.resize(leafCount);
     }
     Progress progress("surface polygons", leafCount, im.options.cancel);

@@ -527,7 +527,7 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
 
 } // namespace
 
-std::vector<std::uint32_t> weldedVertices(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+std::vector<std::uint32_t> verticesToWeld(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
     std::vector<std::uint32_t> out;
     if (atNode.empty()) return out;
     std::vector<std::uint32_t> listed;

@@ -38,13 +38,13 @@ struct NodeWeldStats {
 // apart. Throws std::logic_error if no choice of nodes to keep apart leaves an edge-manifold mesh
 // within a few attempts (not seen on marching-cubes meshes).
 // `alsoSuspect`: further vertices that may lie on a node's point (the surface fit's).
-// `polygonsToWeld`, if given, lists (ascending) the polygons through a vertex weldedVertices
+// `polygonsToWeld`, if given, lists (ascending) the polygons through a vertex verticesToWeld
 // names, as the mesher finds them while it makes the polygons; else the mesh is scanned for them.
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
                                const std::vector<std::uint8_t>& rounded = {}, const std::vector<std::uint32_t>& alsoSuspect = {},
                                const std::vector<std::uint32_t>* polygonsToWeld = nullptr);
 
 // The vertices of atNode that the weld may merge: those whose node has two or more, ascending.
-std::vector<std::uint32_t> weldedVertices(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode);
+std::vector<std::uint32_t> verticesToWeld(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode);
 
 } // namespace vdbsurf
