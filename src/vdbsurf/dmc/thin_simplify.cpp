@@ -415,16 +415,21 @@ std::uint64_t collapseInBlocks(ThinSimplifier& whole, const Field& field, const 
             globalOf.erase(std::unique(globalOf.begin(), globalOf.end()), globalOf.end());
             res.own = globalOf.size();
             auto isOwn = [&](std::uint32_t x) { return std::binary_search(globalOf.begin(), globalOf.begin() + std::ptrdiff_t(res.own), x); };
-            std::vector<std::uint32_t> beside;
+            // Each own vertex's fixed edges (its fixed neighbours, then the other corners of its
+            // triangles beyond the block), in region numbers: numbered locally once all are known.
+            std::vector<std::uint32_t> fixedGlobal, fixedStart{0};
             for (std::size_t i = 0; i < res.own; ++i) {
                 const std::uint32_t g = globalOf[i];
+                fixedGlobal.insert(fixedGlobal.end(), whole.fixedNeighbours[g].begin(), whole.fixedNeighbours[g].end());
                 for (std::uint32_t t : fanOf[g])
                     if (!interior(t, block))
                         for (std::uint32_t x : whole.triangles[t].v)
-                            if (!isOwn(x)) beside.push_back(x);
-                for (std::uint32_t x : whole.fixedNeighbours[g])
-                    if (!isOwn(x)) beside.push_back(x);
+                            if (x != g) fixedGlobal.push_back(x);
+                fixedStart.push_back(std::uint32_t(fixedGlobal.size()));
             }
+            std::vector<std::uint32_t> beside;
+            for (std::uint32_t x : fixedGlobal)
+                if (!isOwn(x)) beside.push_back(x);
             // And the vertices removed earlier that the block's triangles answer for (dead).
             for (std::size_t i = firstOfBlock[b]; i < firstOfBlock[b + 1]; ++i)
                 for (std::uint32_t x : whole.removed[inBlock[i].second]) beside.push_back(x);
@@ -454,12 +459,7 @@ std::uint64_t collapseInBlocks(ThinSimplifier& whole, const Field& field, const 
                 sub.locked[i] = whole.locked[g];
                 sub.quadric[i] = whole.quadric[g];
                 settledHere[i] = settled[g];
-                auto& fixed = sub.fixedNeighbours[i];
-                for (std::uint32_t x : whole.fixedNeighbours[g]) fixed.push_back(localOf(x));
-                for (std::uint32_t t : fanOf[g])
-                    if (!interior(t, block))
-                        for (std::uint32_t x : whole.triangles[t].v)
-                            if (x != g) fixed.push_back(localOf(x));
+                for (std::uint32_t k = fixedStart[i]; k < fixedStart[i + 1]; ++k) sub.fixedNeighbours[i].push_back(localOf(fixedGlobal[k]));
             }
             for (std::size_t i = firstOfBlock[b]; i < firstOfBlock[b + 1]; ++i) {
                 const std::uint32_t t = inBlock[i].second;

@@ -611,16 +611,12 @@ Interval evalNaturalBounds(const ExprProgram& prog, const Box3& box) {
     return toInterval(run(IntervalOps{}, prog, boxSide(box, 0), boxSide(box, 1), boxSide(box, 2)));
 }
 
-Interval evalBounds(const ExprProgram& prog, const Box3& box) {
-    ProtectedInterval::traits_type::rounding upward;
-    if (!hasArgumentsToSkip(prog)) return centred(prog, box, nullptr);
-    naturalKept(prog, box);
-    return centred(prog, box, tKept.steps.data());
-}
+// (The kept steps give the same bits as steps computed afresh: see runSkipping.)
+Interval evalBounds(const ExprProgram& prog, const Box3& box) { return evalBoundsAfterNatural(prog, box); }
 
 Interval evalNaturalBoundsKept(const ExprProgram& prog, const Box3& box) {
+    if (!hasArgumentsToSkip(prog)) return evalNaturalBounds(prog, box);
     ProtectedInterval::traits_type::rounding upward;
-    if (!hasArgumentsToSkip(prog)) return toInterval(run(IntervalOps{}, prog, boxSide(box, 0), boxSide(box, 1), boxSide(box, 2)));
     return toInterval(naturalKept(prog, box));
 }
 

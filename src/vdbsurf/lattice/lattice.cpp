@@ -239,6 +239,11 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             // thousands of operations), and most cells of a block lie a few cells off the surface.
             // Asked together within the block (and a group's cells within the group): a field
             // may reuse its bounds over the box around them (Field::mayStraddleWithin).
+            auto groupCells = [&](int gx, int gy, int gz) {
+                CoordBBox cb(o.offsetBy(2 * gx, 2 * gy, 2 * gz), o.offsetBy(2 * gx + 1, 2 * gy + 1, 2 * gz + 1));
+                cb.intersect(box);
+                return cb;
+            };
             std::uint64_t groups = 0;
             if (!cornersExact) {
                 std::vector<Box3>& boxes = scratchBoxes;
@@ -248,9 +253,7 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
                 for (int gx = lo.x() / 2; gx <= hi.x() / 2; ++gx)
                     for (int gy = lo.y() / 2; gy <= hi.y() / 2; ++gy)
                         for (int gz = lo.z() / 2; gz <= hi.z() / 2; ++gz) {
-                            CoordBBox cb(o.offsetBy(2 * gx, 2 * gy, 2 * gz), o.offsetBy(2 * gx + 1, 2 * gy + 1, 2 * gz + 1));
-                            cb.intersect(box);
-                            boxes.push_back(cellsBox(frame, cb));
+                            boxes.push_back(cellsBox(frame, groupCells(gx, gy, gz)));
                             bits.push_back(gx + 4 * gy + 16 * gz);
                         }
                 scratchOut.resize(boxes.size());
@@ -290,10 +293,8 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
                             bits.push_back(x + 8 * y + 64 * z);
                         }
                 if (boxes.empty()) continue;
-                CoordBBox cb(o.offsetBy(2 * gx, 2 * gy, 2 * gz), o.offsetBy(2 * gx + 1, 2 * gy + 1, 2 * gz + 1));
-                cb.intersect(box);
                 scratchOut.resize(boxes.size());
-                field.mayStraddleWithin(cellsBox(frame, cb), boxes.data(), boxes.size(), iso, scratchOut.data());
+                field.mayStraddleWithin(cellsBox(frame, groupCells(gx, gy, gz)), boxes.data(), boxes.size(), iso, scratchOut.data());
                 for (std::size_t c = 0; c < boxes.size(); ++c)
                     if (scratchOut[c]) {
                         const int bit = bits[c];
