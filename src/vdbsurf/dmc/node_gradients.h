@@ -9,9 +9,12 @@
 // convex hull (in a hemisphere) is between two of its generators; so when the corners'
 // gradients all lie within the edge angle of each other, no two crossing normals can, and the
 // sharp-feature pass skips the cell without gathering its crossings. Most cells of a smooth
-// surface are ruled out by 8 products instead of 28: when every corner gradient lies within half
-// the edge angle of one direction (their sum), no two lie farther apart than the angle. Both
-// tests compare squared products, so they need no square root and no unit vectors.
+// surface are ruled out without the 28 pairs: two unit vectors at angle θ lie 2 - 2 cos θ apart
+// (squared), and no two of the corners' unit gradients lie farther apart than the box around
+// them is wide; so a box narrower than the edge angle's distance rules the cell out, from one
+// minimum and maximum per component. Each node's unit gradient is found once (a node is a
+// corner of up to eight cells). The box is only a shortcut: which cells are candidates is the
+// pair test's answer either way (squared products of the gradients themselves).
 #pragma once
 #include "vdbsurf/dmc/leaf_nodes.h"
 
@@ -28,23 +31,21 @@ public:
     explicit SharpEdgeLimit(double edgeCosine)
         // A small margin keeps the test on the safe side of the normals' float rounding.
         : mPair(edgeCosine + 1e-5),
-          // Within β of one direction, two vectors are within 2β of each other: β = half the
-          // angle whose cosine is the pair limit (none when the limit leaves no angle at all).
-          mCone(mPair >= 1 ? 2.0 : std::cos(0.5 * std::acos(std::max(-1.0, mPair))) + 1e-5) {}
+          // Unit vectors closer than this (squared) have a cosine above the pair limit's: its
+          // distance less a margin ten times what rounding them to float can add (negative, so
+          // that nothing is that close, where the limit leaves no angle at all).
+          mUnitDistance(2 - 2 * std::min(mPair, 1.0) - 1e-5) {}
 
     // Is the angle between a and b (squared lengths aa, bb) wider than the edge angle?
     bool pairWider(const Vec3d& a, double aa, const Vec3d& b, double bb) const {
         const double d = dot(a, b), bound = mPair * mPair * aa * bb;
         return mPair >= 0 ? d < 0 || d * d < bound : d < 0 && d * d > bound;
     }
-    // Is v (squared length vv) within half the edge angle of m (squared length mm)?
-    bool inCone(const Vec3d& v, double vv, const Vec3d& m, double mm) const {
-        const double d = dot(v, m);
-        return mCone <= 1 && d > 0 && d * d >= mCone * mCone * vv * mm;
-    }
+    // Are unit vectors this far apart (squared) surely within the edge angle of each other?
+    bool unitsWithin(double squaredDistance) const { return squaredDistance < mUnitDistance; }
 
 private:
-    double mPair, mCone;
+    double mPair, mUnitDistance;
 };
 
 class NodeGradients {
@@ -64,7 +65,16 @@ public:
                     const std::size_t i = index(x, y, z);
                     double* g = mGradient[n];
                     for (std::size_t a = 0; a < 3; ++a) g[a] = (mValues[i + kStride[a]] - mValues[i - kStride[a]]) * 0.5;
-                    mSquared[n] = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+                    const double gg = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+                    mSquared[n] = gg;
+                    // A gradient the pair test cannot use (its squared products could overflow or
+                    // vanish) gets a point far off the unit sphere: every box with it is too wide.
+                    if (usable(gg)) {
+                        const double inverse = 1 / std::sqrt(gg);
+                        mUnit[n] = Float4{float(g[0] * inverse), float(g[1] * inverse), float(g[2] * inverse), 0.0f};
+                    } else {
+                        mUnit[n] = Float4{8.0f, 8.0f, 8.0f, 0.0f};
+                    }
                 }
     }
 
@@ -92,25 +102,26 @@ public:
     // May a sharp edge (two crossing normals with cosine below the limit's) pass through the
     // leaf's cell at (x, y, z)? Conservative: true also where a corner has no usable gradient.
     bool mayHoldSharpEdge(int x, int y, int z, const SharpEdgeLimit& limit) const {
-        // Plain arrays (a Vec3d zeroes itself: that was a sixth of the test's time).
+        constexpr int kY = kLeafNodesPerSide, kZ = kLeafNodesPerSide * kLeafNodesPerSide;
+        const int first = leafNodeIndex(x, y, z);
+        const int corner[8] = {first, first + 1, first + kY, first + kY + 1, first + kZ, first + kZ + 1, first + kZ + kY, first + kZ + kY + 1};
+        // (Four floats a node: a minimum and a maximum per corner cover all three components.)
+        Float4 lo = mUnit[first], hi = lo;
+        for (int c = 1; c < 8; ++c) {
+            const Float4 v = mUnit[corner[c]];
+            lo = v < lo ? v : lo;
+            hi = v > hi ? v : hi;
+        }
+        const Float4 d = hi - lo;
+        if (limit.unitsWithin(double(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]))) return false;
+        // Plain arrays (a Vec3d zeroes itself).
         const double* g[8];
         double gg[8];
-        double sum[3] = {0, 0, 0};
-        const int first = leafNodeIndex(x, y, z);
         for (int c = 0; c < 8; ++c) {
-            const int i = first + (c & 1) + kLeafNodesPerSide * ((c >> 1) & 1) + kLeafNodesPerSide * kLeafNodesPerSide * (c >> 2);
-            g[c] = mGradient[i];
-            gg[c] = mSquared[i];
-            // (Outside this range the squared products below could overflow or vanish.)
-            if (!(gg[c] > 1e-100 && gg[c] < 1e100)) return true;
-            for (int a = 0; a < 3; ++a) sum[a] += g[c][a];
+            g[c] = mGradient[corner[c]], gg[c] = mSquared[corner[c]];
+            if (!usable(gg[c])) return true;
         }
-        const Vec3d m(sum[0], sum[1], sum[2]);
-        const double mm = dot(m, m);
         auto vec = [&](int c) { return Vec3d(g[c][0], g[c][1], g[c][2]); };
-        bool inCone = true;
-        for (int c = 0; c < 8 && inCone; ++c) inCone = limit.inCone(vec(c), gg[c], m, mm);
-        if (inCone) return false;
         for (int a = 0; a < 8; ++a)
             for (int b = a + 1; b < 8; ++b)
                 if (limit.pairWider(vec(a), gg[a], vec(b), gg[b])) return true;
@@ -118,6 +129,10 @@ public:
     }
 
 private:
+    // Can the pair test use a gradient of this squared length? (Outside this range its squared
+    // products could overflow or vanish: such a corner makes its cells candidates.)
+    static bool usable(double gg) { return gg > 1e-100 && gg < 1e100; }
+
     static constexpr int kSide = kLeafNodesPerSide + 2;
     static constexpr int kCount = kSide * kSide * kSide;
     static constexpr std::size_t kStride[3] = {1, kSide, kSide * kSide}; // index steps along x, y, z
@@ -129,6 +144,9 @@ private:
     // Per needed node of the leaf (leafNodeIndex): gradient (index units) and its squared length.
     double mGradient[kLeafNodeCount][3];
     double mSquared[kLeafNodeCount];
+    // Per needed node: its unit gradient (x, y, z, 0), rounded to float.
+    using Float4 = float __attribute__((vector_size(16)));
+    Float4 mUnit[kLeafNodeCount];
 };
 
 } // namespace vdbsurf
