@@ -250,6 +250,26 @@ TEST_CASE("valueAndGradient returns value() bit for bit and OpenVDB's central di
     }
 }
 
+TEST_CASE("value() is BoxSampler's sample bit for bit, inside leaves and across their edges") {
+    // Points at multiples of 1/64 world unit on a grid of 0.25 (index positions exact either way
+    // to index space): value() reads the eight voxels from one leaf where they lie in one, else
+    // leaf part by leaf part; either way they and their interpolation are BoxSampler's.
+    auto g = noiseGrid(12, 0.25, 3);
+    GridField f(g, "noise");
+    std::mt19937 rng(5);
+    std::uniform_int_distribution<int> u(-110, 110);
+    std::size_t differ = 0, acrossLeaves = 0;
+    for (int i = 0; i < 4000; ++i) {
+        const Vec3d p(u(rng) / 64.0, u(rng) / 64.0, u(rng) / 64.0);
+        const openvdb::Vec3d ip = g->worldToIndex(openvdb::Vec3d(p.x, p.y, p.z));
+        const openvdb::Coord c = openvdb::Coord::floor(ip);
+        acrossLeaves += (c.x() & 7) == 7 || (c.y() & 7) == 7 || (c.z() & 7) == 7;
+        differ += f.value(p) != double(openvdb::tools::BoxSampler::sample(g->tree(), ip));
+    }
+    CHECK(differ == 0);
+    CHECK(acrossLeaves > 500);
+}
+
 TEST_CASE("values over a box are value() bit for bit, aligned and rotated, small boxes and large") {
     for (bool rotate : {false, true}) {
         auto g = noiseGrid(12, 0.25, 3);

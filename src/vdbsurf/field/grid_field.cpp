@@ -94,9 +94,15 @@ public:
         return mGrid->worldToIndex(toVdb(p));
     }
 
+    // BoxSampler::sample's bits: the same eight voxels, read in one probe where they lie in one
+    // leaf (most do), and the same interpolation of them.
     double value(const Vec3d& p) const override {
         Acc acc(mTree);
-        return double(openvdb::tools::BoxSampler::sample(acc, worldToIndex(p)));
+        const openvdb::Vec3d ip = worldToIndex(p);
+        const openvdb::Vec3i idx = openvdb::tools::local_util::floorVec3(ip);
+        typename TreeT::ValueType block[8];
+        smallBlock<2>(acc, Coord(idx), block);
+        return double(interpolateBlock(block, Vec3i(2, 2, 2), 0, 0, 0, ip - idx));
     }
 
     bool values(const Box3& box, const Vec3d* points, std::size_t n, double* out) const override {
@@ -160,13 +166,16 @@ public:
         // so the results are value()'s and sampledGradient()'s bit for bit).
         using ValueT = typename TreeT::ValueType;
         const openvdb::Vec3d ip = worldToIndex(p);
-        const Coord base(int(std::floor(ip.x() - 0.5)), int(std::floor(ip.y() - 0.5)), int(std::floor(ip.z() - 0.5)));
         openvdb::Vec3d samples[7] = {ip, ip, ip, ip, ip, ip, ip}; // ip, then lo/hi per axis
         for (int a = 0; a < 3; ++a) samples[1 + 2 * a][a] -= 0.5, samples[2 + 2 * a][a] += 0.5;
+        // Each coordinate of a sample is ip's, or ip's -+ 0.5 along one axis: three floors an axis.
+        int at[3], below[3], above[3];
+        for (int a = 0; a < 3; ++a)
+            at[a] = int(std::floor(ip[a])), below[a] = int(std::floor(samples[1 + 2 * a][a])), above[a] = int(std::floor(samples[2 + 2 * a][a]));
+        const Coord base(below[0], below[1], below[2]);
         Coord corner[7];
         for (int s = 0; s < 7; ++s) {
-            const openvdb::Vec3d& q = samples[s];
-            corner[s] = Coord(int(std::floor(q.x())), int(std::floor(q.y())), int(std::floor(q.z())));
+            for (int a = 0; a < 3; ++a) corner[s][a] = s == 1 + 2 * a ? below[a] : s == 2 + 2 * a ? above[a] : at[a];
             const Coord d = corner[s] - base;
             // Rounding of ip +- 0.5 can step outside the block: the plain calls are exact there.
             if (d.x() < 0 || d.y() < 0 || d.z() < 0 || d.x() > 1 || d.y() > 1 || d.z() > 1) {
@@ -176,7 +185,7 @@ public:
         }
         Acc acc(mTree);
         ValueT block[27]; // x fastest, as sampleBlock writes it
-        sampleBlock(acc, base, {3, 3, 3}, block);
+        smallBlock<3>(acc, base, block);
         auto sample = [&](int s) {
             const Coord d = corner[s] - base;
             const openvdb::Vec3d uvw = samples[s] - openvdb::Vec3d(corner[s].x(), corner[s].y(), corner[s].z());
@@ -567,6 +576,23 @@ private:
                         for (int x = lo.x(); x < hi.x(); ++x) at(x, y, z) = v;
             }
         });
+    }
+
+    // sampleBlock of the N^3 voxels from base (N = 2 or 3): where they lie in one leaf, read from
+    // its buffer after one probe, without sampleBlock's walk over leaf parts.
+    template <int N, typename OutT>
+    void smallBlock(Acc& acc, const Coord& base, OutT* out) const {
+        const int x = base.x() & 7, y = base.y() & 7, z = base.z() & 7;
+        if (x <= 8 - N && y <= 8 - N && z <= 8 - N) {
+            if (const LeafT* leaf = acc.probeConstLeaf(base)) {
+                const auto* first = leaf->buffer().data() + ((x << 6) | (y << 3) | z);
+                for (int k = 0; k < N; ++k)
+                    for (int j = 0; j < N; ++j)
+                        for (int i = 0; i < N; ++i) out[(k * N + j) * N + i] = OutT(first[(i << 6) | (j << 3) | k]);
+                return;
+            }
+        }
+        sampleBlock(acc, base, {N, N, N}, out);
     }
 
     // Bit z of column[x * 9 + y]: is voxel base + (x, y, z) active (or in an active tile), for
