@@ -18,6 +18,17 @@ void activateAround(Lattice& lattice, openvdb::tree::ValueAccessor<CellTree>& ce
 }
 } // namespace
 
+void LatticeDeformation::release() {
+    auto free = [](auto& tree) {
+        if (tree.use_count() == 1) clearTree(*tree);
+        tree.reset();
+    };
+    free(offsets);
+    free(onSurface);
+    free(insideOnSurface);
+    *this = LatticeDeformation();
+}
+
 void activateCellsAroundMovedNodes(Lattice& lattice, const LatticeDeformation& deformation) {
     openvdb::tree::ValueAccessor<CellTree> cells(*lattice.cells);
     // Nodes placed on features have offsets too.

@@ -38,6 +38,9 @@ struct LatticeDeformation {
 
     bool empty() const { return offsets->empty() && onSurface->empty(); }
     std::uint64_t movedNodes() const { return offsets->activeVoxelCount(); }
+    // Frees the trees this deformation alone holds (vdb/sparse_tree.h: clearTree) and leaves it
+    // empty: the mesher does so while the mesh is made.
+    void release();
 };
 
 // The float offset that moves a node by `rel` (world units), if that stays in its Ω. A point on

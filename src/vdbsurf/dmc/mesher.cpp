@@ -14,6 +14,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
@@ -235,7 +236,20 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
             report.fitFeatureCentres = fs.featureCentres;
             report.secondsFit = fs.seconds;
         };
-    Mesh mesh = surface->mesh(fitBeforeWeld);
+    // Where the thin search's nodes are now (the sharp pass may have moved some again), for the
+    // simplification below; then the deformation is done with, and its trees are freed while the
+    // surface makes the mesh (whose weld leaves the other threads idle at times), not after it.
+    std::vector<Vec3d> thinWhere;
+    if (simplify && !thinNodes.empty()) {
+        thinWhere.reserve(thinNodes.size());
+        const openvdb::tree::ValueAccessor<const OffsetTree> offsets(*deformation.offsets);
+        for (const Vec3i& n : thinNodes) {
+            const openvdb::Vec3f o = offsets.getValue(openvdb::Coord(n.x, n.y, n.z));
+            thinWhere.push_back(report.frame.nodeWorld(n) + Vec3d(o.x(), o.y(), o.z()));
+        }
+    }
+    Mesh mesh;
+    tbb::parallel_invoke([&] { mesh = surface->mesh(fitBeforeWeld); }, [&] { deformation.release(); });
     report.cellsWithSurface = surface->stats().cellsWithSurface;
     report.weldedVertices = surface->stats().weldedVertices;
     report.collapsedPolygons = surface->stats().collapsedPolygons;
@@ -267,15 +281,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         tso.tolerance = request.simplifyTolerance;
         tso.cancel = request.cancel;
         ThinSimplifyStats tss;
-        // Where the nodes are now (the sharp pass may have moved some again).
-        std::vector<Vec3d> where;
-        where.reserve(thinNodes.size());
-        const openvdb::tree::ValueAccessor<const OffsetTree> offsets(*deformation.offsets);
-        for (const Vec3i& n : thinNodes) {
-            const openvdb::Vec3f o = offsets.getValue(openvdb::Coord(n.x, n.y, n.z));
-            where.push_back(report.frame.nodeWorld(n) + Vec3d(o.x(), o.y(), o.z()));
-        }
-        mesh = simplifyThinParts(field, report.frame, where, std::move(mesh), tso, &tss);
+        mesh = simplifyThinParts(field, report.frame, thinWhere, std::move(mesh), tso, &tss);
         report.simplifyRegionTriangles = tss.regionTriangles;
         report.simplifyCollapses = tss.collapses;
         report.foldsClosed += tss.foldsClosed;

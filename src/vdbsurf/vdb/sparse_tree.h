@@ -9,11 +9,32 @@
 #pragma once
 #include <openvdb/openvdb.h>
 
+#include <cstddef>
+#include <vector>
+
 namespace vdbsurf {
 
 template <typename ValueT>
 using SparseNodeTree = openvdb::tree::Tree<
     openvdb::tree::RootNode<openvdb::tree::InternalNode<openvdb::tree::InternalNode<openvdb::tree::LeafNode<ValueT, 3>, 3>, 3>>>;
+
+// Empties a tree, freeing its nodes on the calling thread when they are few (else as OpenVDB
+// does, in parallel). Tree::clear frees leaves on all threads: where one thread made them (the
+// sharp pass places feature nodes serially), every free on another thread goes to that thread's
+// heap under its lock, and the two threads took twice as long as one (the armadillo's
+// deformation: 0.72 ms against 0.31).
+template <typename TreeT>
+void clearTree(TreeT& tree, std::size_t serialLeaves = 16384) {
+    if (tree.leafCount() <= serialLeaves) {
+        std::vector<typename TreeT::LeafNodeType*> leaves;
+        tree.stealNodes(leaves);
+        for (auto* leaf : leaves) delete leaf;
+        std::vector<typename TreeT::RootNodeType::ChildNodeType*> upper;
+        tree.stealNodes(upper);
+        for (auto* node : upper) delete node;
+    }
+    tree.clear();
+}
 
 // The cells of a lattice (active voxel = cell), as Lattice holds them.
 using CellTree = SparseNodeTree<openvdb::ValueMask>;
