@@ -1303,6 +1303,30 @@ TEST_CASE("a weld that splits a pinched polygon rewrites the mesh whether its po
     }
 }
 
+TEST_CASE("a weld that leaves two polygons folded at a vertex closes the fold") {
+    // Quads P = (v, a, x, b) and Q = (v, c, y, a) around v, with the triangle (v, b, c) between
+    // them; b and c lie on one node. Welded, the triangle collapses and P and Q meet at v along
+    // both edges, folded onto each other: v leaves both, and the mesh. Triangles elsewhere use a,
+    // and u, whose one polygon at the node, (u, b, c), collapses too: both stay.
+    Mesh m;
+    m.points = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5f, -1, 0}, {-1, 0.5f, 0}, {2, 0, 1}, {2, 1, 1},
+                {3, 3, 0}, {4, 3, 1}, {4, 4, 1}};
+    const std::uint32_t v = 0, a = 1, b = 2, c = 3, x = 4, y = 5, u = 8;
+    for (const std::vector<std::uint32_t>& poly :
+         {std::vector<std::uint32_t>{v, a, x, b}, {v, b, c}, {v, c, y, a}, {a, 6, 7}, {u, b, c}, {u, 9, 10}}) {
+        m.indices.insert(m.indices.end(), poly.begin(), poly.end());
+        m.offsets.push_back(std::uint32_t(m.indices.size()));
+    }
+    const std::vector<std::pair<std::uint32_t, Vec3i>> atNode = {{b, {1, 1, 0}}, {c, {1, 1, 0}}};
+    const NodeWeldStats stats = weldNodeVertices(m, atNode);
+    CHECK(stats.weldedVertices == 1);
+    CHECK(stats.foldsClosed == 1);
+    CHECK(m.polygonCount() == 4);
+    CHECK(std::find(m.points.begin(), m.points.end(), Vec3f(3, 3, 0)) != m.points.end()); // u stays
+    CHECK(std::find(m.points.begin(), m.points.end(), Vec3f(0, 0, 0)) == m.points.end()); // v is gone
+    CHECK(checkTopology(m).unusedVertices == 0);
+}
+
 TEST_CASE("on a smooth torus, few nodes go onto edges: curvature's lines differ from cell to cell") {
     // Tangent planes of a tube 1.5 to 3 cells thick meet at more than the edge angle, so cells
     // there propose "edges"; their lines differ from cell to cell, so another cell rarely confirms
