@@ -2,6 +2,7 @@
 #include "support/test_support.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/field/grid_field.h"
@@ -129,4 +130,29 @@ TEST_CASE("a sparse cell tree converts to OpenVDB's standard mask tree cell for 
     CHECK(standard->isValueOn(openvdb::Coord(71, 71, 71)));
     CHECK_FALSE(standard->isValueOn(openvdb::Coord(72, 64, 64)));
     CHECK_FALSE(standard->isValueOn(openvdb::Coord(0, 0, 0)));
+}
+
+TEST_CASE("a deformation's trees are freed whole, and a tree another owner shares is left to it") {
+    // clearTree frees a small tree's nodes on the calling thread, a large one's as OpenVDB does:
+    // either way the tree is empty after. release() frees only what the deformation alone holds.
+    for (int spread : {3, 60}) {
+        INFO("nodes " << spread << " apart");
+        NodeMaskTree tree(false);
+        for (int i = 0; i < 2000; ++i) tree.setValueOn(openvdb::Coord(i * spread, (i * 7) % 50, -i));
+        REQUIRE(tree.leafCount() > 10);
+        clearTree(tree, spread == 3 ? 0 : 16384); // the parallel path, then the serial one
+        CHECK(tree.empty());
+        CHECK(tree.leafCount() == 0);
+        CHECK(tree.activeVoxelCount() == 0);
+    }
+    LatticeDeformation deformation;
+    deformation.offsets->setValue(openvdb::Coord(1, 2, 3), openvdb::Vec3f(0.1f, 0.0f, 0.0f));
+    deformation.onSurface->setValueOn(openvdb::Coord(1, 2, 3));
+    deformation.insideOnSurface->setValueOn(openvdb::Coord(4, 5, 6));
+    const OffsetTree::Ptr kept = deformation.offsets; // (as --lattice-out might hold it)
+    deformation.release();
+    CHECK(deformation.empty());
+    CHECK(deformation.insideOnSurface->empty());
+    CHECK(kept->activeVoxelCount() == 1);
+    CHECK(kept->getValue(openvdb::Coord(1, 2, 3)) == openvdb::Vec3f(0.1f, 0.0f, 0.0f));
 }
