@@ -19,13 +19,14 @@ void activateAround(Lattice& lattice, openvdb::tree::ValueAccessor<CellTree>& ce
 } // namespace
 
 void LatticeDeformation::release() {
-    auto free = [](auto& tree) {
+    // (A tree another owner still holds, say --lattice-out's, is left to it.)
+    auto drop = [](auto& tree) {
         if (tree.use_count() == 1) clearTree(*tree);
         tree.reset();
     };
-    free(offsets);
-    free(onSurface);
-    free(insideOnSurface);
+    drop(offsets);
+    drop(onSurface);
+    drop(insideOnSurface);
     *this = LatticeDeformation();
 }
 
