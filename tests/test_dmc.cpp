@@ -19,6 +19,7 @@
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_distance.h"
 #include "vdbsurf/mesh/mesh_io.h"
+#include "vdbsurf/mesh/vertex_fans.h"
 
 #include <catch2/catch.hpp>
 
@@ -1251,6 +1252,68 @@ TEST_CASE("welding groups a node's vertices alike wherever its lattice coordinat
         return p;
     };
     CHECK(sorted(welded[0].points) == sorted(test::cubeMesh().points));
+}
+
+TEST_CASE("a weld given its polygons drops the points of collapsed ones that no other polygon uses") {
+    // Vertices 0 and 1 share node n; triangle (0, 1, 2) collapses when they are welded. The weld
+    // given its polygons (as the mesher hands them, every point on a polygon) looks only at
+    // theirs for points to drop: vertex 2 must stay where a polygon through no node vertex holds
+    // it, and go where it does not; the same meshes the scan of every polygon gives.
+    for (const bool otherHolds : {true, false}) {
+        Mesh m;
+        m.points = {Vec3f(0, 0, 0), Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0), Vec3f(1, 1, 0)};
+        m.offsets = {0};
+        auto add = [&](std::initializer_list<std::uint32_t> p) {
+            m.indices.insert(m.indices.end(), p);
+            m.offsets.push_back(std::uint32_t(m.indices.size()));
+        };
+        add({0, 1, 2});
+        add({1, 3, 4});
+        if (otherHolds) {
+            m.points.push_back(Vec3f(2, 0, 0));
+            add({2, 4, 5});
+        }
+        const std::vector<std::pair<std::uint32_t, Vec3i>> atNode = {{0, Vec3i(0, 0, 0)}, {1, Vec3i(0, 0, 0)}};
+        const std::vector<std::uint32_t> through = {0, 1};
+        Mesh listed = m;
+        INFO("another polygon holds vertex 2: " << otherHolds);
+        CHECK(weldNodeVertices(listed, atNode, {}, {}, &through).weldedVertices == 1);
+        weldNodeVertices(m, atNode);
+        CHECK(listed.points == m.points);
+        CHECK(listed.offsets == m.offsets);
+        CHECK(listed.indices == m.indices);
+        REQUIRE(listed.polygonCount() == (otherHolds ? 2u : 1u));
+        CHECK(listed.points.size() == (otherHolds ? 5u : 3u));
+        const bool keepsTwo = std::find(listed.points.begin(), listed.points.end(), Vec3f(1, 0, 0)) != listed.points.end();
+        CHECK(keepsTwo == otherHolds);
+        CHECK(checkTopology(listed).degeneratePolygons == 0);
+    }
+}
+
+TEST_CASE("splitting fans with a caller's scratch array gives the same mesh and leaves the array as it came") {
+    // Two octahedra touching at one vertex: it gets a copy for the second fan. The weld lends
+    // splitFansAt its node numbering (every entry ~0u by then) instead of a fresh array.
+    const Mesh one = test::octahedronMesh();
+    Mesh two = one;
+    const std::uint32_t n = std::uint32_t(one.points.size());
+    for (const Vec3f& p : one.points) two.points.push_back(p + (one.points[0] - one.points[1]));
+    for (std::size_t f = 0; f < one.polygonCount(); ++f) {
+        std::vector<std::uint32_t> vs(one.polygon(f), one.polygon(f) + one.polygonSize(f));
+        for (std::uint32_t& v : vs) v = v == 1 ? 0 : v + n; // its vertex 1 on the first one's vertex 0
+        two.addPolygon(vs.data(), vs.size());
+    }
+    Mesh plain = two;
+    CHECK(splitFansAt(plain, {0, 2}) == 1);
+    CHECK(checkTopology(plain).nonManifoldVertices == 0);
+    std::vector<std::uint32_t> scratch(3, ~0u); // shorter than the points: it grows
+    for (int round = 0; round < 2; ++round) {
+        Mesh lent = two;
+        CHECK(splitFansAt(lent, {0, 2}, nullptr, &scratch) == 1);
+        CHECK(lent.points == plain.points);
+        CHECK(lent.indices == plain.indices);
+        CHECK(scratch.size() >= two.points.size());
+        CHECK(std::all_of(scratch.begin(), scratch.end(), [](std::uint32_t v) { return v == ~0u; }));
+    }
 }
 
 TEST_CASE("a weld that splits a pinched polygon rewrites the mesh whether its polygons grow or shrink") {

@@ -144,6 +144,27 @@ std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint
     return repOf;
 }
 
+// One attempt's weld, read through the node numbering (`slot`: a vertex on a node -> its node,
+// kNone elsewhere) rather than through arrays of a number per vertex: filling those cost as much
+// as the attempts where a mesh has few vertices on nodes (a million-vertex sphere, 32 of them).
+// Which nodes are welded is fixed when the attempt starts, though `apart` grows during it.
+struct Welding {
+    const std::vector<std::uint32_t>& slot;
+    const std::vector<std::uint32_t>& repOfSlot; // each node's representative
+    std::vector<std::uint8_t> welded;            // per node: its vertices become its representative
+
+    // Where vertex v goes.
+    std::uint32_t target(std::uint32_t v) const {
+        const std::uint32_t s = slot[v];
+        return s != kNone && welded[s] ? repOfSlot[s] : v;
+    }
+    // Is v the vertex a welded node's vertices became?
+    bool isRep(std::uint32_t v) const {
+        const std::uint32_t s = slot[v];
+        return s != kNone && welded[s] && repOfSlot[s] == v;
+    }
+};
+
 // Welded vertices where the mesh would stop being edge-manifold: two loop edges leaving v for
 // one vertex w, or two arriving from one, mean the edge {v, w} has more than two polygons or two
 // running the same way (with at most one each way it is fine). Only edges at a welded vertex
@@ -154,13 +175,13 @@ std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint
 // that keeping it apart leaves its vertices coincident but no polygon without area (two nodes
 // placed side by side on a sharp edge pinch it when both are welded; kept apart together, the
 // polygons among one's vertices are slivers of no area); else both. Returns whether any was found.
-bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& isRep, const std::vector<std::uint32_t>& slot,
-                          std::size_t slots, const std::vector<std::uint32_t>& selfPolygons, bool oneEnd,
+bool markNonManifoldWelds(const Loops& loops, const Welding& weld, const std::vector<std::uint32_t>& slot, std::size_t slots,
+                          const std::vector<std::uint32_t>& selfPolygons, bool oneEnd,
                           std::vector<std::uint8_t>& apart) {
     // The corners at each welded vertex, grouped by counting: (next vertex, previous vertex).
     std::vector<std::uint32_t> first(slots + 1, 0);
     for (std::uint32_t v : loops.indices)
-        if (isRep[v]) ++first[slot[v] + 1];
+        if (weld.isRep(v)) ++first[slot[v] + 1];
     for (std::size_t s = 0; s < slots; ++s) first[s + 1] += first[s];
     std::vector<std::pair<std::uint32_t, std::uint32_t>> corners(first.back());
     {
@@ -169,7 +190,7 @@ bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& i
             const std::uint32_t* p = loops.loop(l);
             const std::uint32_t n = loops.size(l);
             for (std::uint32_t i = 0; i < n; ++i)
-                if (isRep[p[i]]) corners[fill[slot[p[i]]]++] = {p[i + 1 < n ? i + 1 : 0], p[i > 0 ? i - 1 : n - 1]};
+                if (weld.isRep(p[i])) corners[fill[slot[p[i]]]++] = {p[i + 1 < n ? i + 1 : 0], p[i > 0 ? i - 1 : n - 1]};
         }
     }
     std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> badEdges(chunkCount(slots)); // (slot of v, w)
@@ -189,7 +210,7 @@ bool markNonManifoldWelds(const Loops& loops, const std::vector<std::uint8_t>& i
     for (const auto& edges : badEdges)
         for (const auto& [s, w] : edges) {
             any = true;
-            if (!isRep[w]) {
+            if (!weld.isRep(w)) {
                 apart[s] = 1;
                 continue;
             }
@@ -251,14 +272,14 @@ std::uint64_t mixBits(std::uint64_t v) {
 // vertex: on an edge-manifold surface their edges belong to them alone, so dropping them leaves
 // nothing open, and a loop has at most one reversed twin. Twins share an order-free hash of
 // their vertices; only loops with equal hashes are compared. Returns the number marked.
-std::uint64_t markReversedPairs(const Loops& loops, const std::vector<std::uint8_t>& welded, std::vector<std::uint8_t>& pillow) {
+std::uint64_t markReversedPairs(const Loops& loops, const Welding& weld, std::vector<std::uint8_t>& pillow) {
     pillow.assign(loops.count(), 0);
     std::vector<std::vector<std::pair<std::uint64_t, std::uint32_t>>> parts(chunkCount(loops.count()));
     forEachChunk(loops.count(), [&](std::size_t c, std::size_t b, std::size_t e) {
         for (std::size_t l = b; l < e; ++l) {
             const std::uint32_t* p = loops.loop(l);
             const std::uint32_t n = loops.size(l);
-            if (std::none_of(p, p + n, [&](std::uint32_t v) { return welded[v] != 0; })) continue;
+            if (std::none_of(p, p + n, [&](std::uint32_t v) { return weld.isRep(v); })) continue;
             std::uint64_t h = mixBits(n);
             for (std::uint32_t i = 0; i < n; ++i) h += mixBits(p[i] + 1);
             parts[c].emplace_back(h, std::uint32_t(l));
@@ -292,20 +313,13 @@ std::pair<std::size_t, std::size_t> candidatesIn(const std::vector<std::uint32_t
     return {std::size_t(lo - candidates.begin()), std::size_t(hi - candidates.begin())};
 }
 
-// The mesh's polygons with each candidate replaced by its loops (pillows left out), and the
-// points no polygon then uses dropped (the order of the rest kept); the new numbers of the
-// polygons that came from candidates (ascending) go to fromCandidates. Returns old -> new point
-// numbers (kNone for dropped points). Rewritten in place, front to back: a candidate's loops hold
-// no more vertices than it did, and points only move down, so nothing is written before it is
-// read; the polygon count can grow where a pinched polygon splits, and then the offsets alone go
-// to a new array. (A rewrite into new arrays touched 6 MB of fresh memory on the armadillo, a
-// page fault per 4 KB: the weld's largest cost.) Polygons between candidates move as runs: they
-// are nearly all of them, and only their vertex numbers change.
-std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidates, const std::vector<std::uint32_t>& firstLoop,
-                                             const Loops& loops, const std::vector<std::uint8_t>& pillow,
-                                             std::vector<std::uint32_t>& fromCandidates) {
-    const std::size_t polygons = mesh.polygonCount(), points = mesh.points.size();
-    // Which points the result uses: those of polygons between candidates, and of kept loops.
+// Which points a polygon uses once the candidates are replaced by their kept loops (1), found
+// by marking the points of every polygon between candidates and of every kept loop.
+std::vector<std::uint8_t> pointsUsedAfter(const Mesh& mesh, const std::vector<std::uint32_t>& candidates,
+                                          const std::vector<std::uint32_t>& firstLoop, const Loops& loops,
+                                          const std::vector<std::uint8_t>& pillow) {
+    const std::size_t points = mesh.points.size();
+    // (Atomic: two chunks may mark one point.)
     std::unique_ptr<std::atomic<std::uint8_t>[]> used(new std::atomic<std::uint8_t>[points]);
     forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
         for (std::size_t v = b; v < e; ++v) used[v].store(0, std::memory_order_relaxed);
@@ -313,7 +327,7 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
     auto use = [&](const std::uint32_t* p, std::size_t n) {
         for (std::size_t i = 0; i < n; ++i) used[p[i]].store(1, std::memory_order_relaxed);
     };
-    forEachChunk(polygons, [&](std::size_t, std::size_t b, std::size_t e) {
+    forEachChunk(mesh.polygonCount(), [&](std::size_t, std::size_t b, std::size_t e) {
         const auto [k0, k1] = candidatesIn(candidates, b, e);
         std::size_t f = b;
         for (std::size_t k = k0; k <= k1; ++k) {
@@ -325,18 +339,84 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
             f = until + 1;
         }
     });
+    std::vector<std::uint8_t> out = prefaultedVector<std::uint8_t>(points, 0);
+    forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t v = b; v < e; ++v) out[v] = used[v].load(std::memory_order_relaxed);
+    });
+    return out;
+}
+
+// pointsUsedAfter where every point lies on a polygon, from the candidates alone (the marking
+// pass over every polygon was most of the weld's time on meshes with few vertices on nodes):
+// only a point of a candidate can go, when no kept loop holds it and no polygon between the
+// candidates does. A vertex on a welded node lies on candidates alone; another point of a
+// candidate that no kept loop holds (rare: its polygons there all collapsed) is looked for
+// among the rest.
+std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::vector<std::uint32_t>& candidates,
+                                                 const std::vector<std::uint32_t>& firstLoop, const Loops& loops,
+                                                 const std::vector<std::uint8_t>& pillow, const std::vector<std::uint32_t>& onNode) {
+    constexpr std::uint8_t kUnsure = 2;
+    std::vector<std::uint8_t> used = prefaultedVector<std::uint8_t>(mesh.points.size(), 1);
+    for (const std::uint32_t f : candidates)
+        for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) used[mesh.indices[i]] = 0;
+    for (std::size_t l = 0; l < loops.count(); ++l)
+        if (!pillow[l])
+            for (std::uint32_t i = 0; i < loops.size(l); ++i) used[loops.loop(l)[i]] = 1;
+    std::vector<std::uint32_t> unsure;
+    for (const std::uint32_t f : candidates)
+        for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) {
+            const std::uint32_t v = mesh.indices[i];
+            if (used[v] == 0 && onNode[v] == kNone) used[v] = kUnsure, unsure.push_back(v);
+        }
+    if (!unsure.empty()) {
+        std::vector<std::vector<std::uint32_t>> found(chunkCount(mesh.polygonCount()));
+        forEachChunk(mesh.polygonCount(), [&](std::size_t c, std::size_t b, std::size_t e) {
+            const auto [k0, k1] = candidatesIn(candidates, b, e);
+            std::size_t f = b;
+            for (std::size_t k = k0; k <= k1; ++k) {
+                const std::size_t until = k < k1 ? std::size_t(candidates[k]) : e;
+                for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[until]; ++i)
+                    if (used[mesh.indices[i]] == kUnsure) found[c].push_back(mesh.indices[i]);
+                f = until + 1;
+            }
+        });
+        for (const auto& vs : found)
+            for (const std::uint32_t v : vs) used[v] = 1;
+        for (const std::uint32_t v : unsure)
+            if (used[v] == kUnsure) used[v] = 0;
+    }
+    return used;
+}
+
+// The mesh's polygons with each candidate replaced by its loops (pillows left out), and the
+// points no polygon then uses dropped (the order of the rest kept); the new numbers of the
+// polygons that came from candidates (ascending) go to fromCandidates. Returns old -> new point
+// numbers (kNone for dropped points). Rewritten in place, front to back: a candidate's loops hold
+// no more vertices than it did, and points only move down, so nothing is written before it is
+// read; the polygon count can grow where a pinched polygon splits, and then the offsets alone go
+// to a new array. (A rewrite into new arrays touched 6 MB of fresh memory on the armadillo, a
+// page fault per 4 KB: the weld's largest cost.) Polygons between candidates move as runs: they
+// are nearly all of them, and only their vertex numbers change. `onNode`: the vertices on the
+// nodes welded (slot[v] != kNone), all of whose polygons are candidates; `everyPointUsed`: every
+// point lies on a polygon (see weldNodeVertices).
+std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidates, const std::vector<std::uint32_t>& firstLoop,
+                                             const Loops& loops, const std::vector<std::uint8_t>& pillow,
+                                             const std::vector<std::uint32_t>& onNode, bool everyPointUsed,
+                                             std::vector<std::uint32_t>& fromCandidates) {
+    const std::size_t polygons = mesh.polygonCount(), points = mesh.points.size();
+    const std::vector<std::uint8_t> used = everyPointUsed ? pointsLeftByCandidates(mesh, candidates, firstLoop, loops, pillow, onNode)
+                                                          : pointsUsedAfter(mesh, candidates, firstLoop, loops, pillow);
     std::vector<std::uint32_t> kept(chunkCount(points), 0);
     forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
-        for (std::size_t v = b; v < e; ++v) kept[c] += used[v].load(std::memory_order_relaxed);
+        for (std::size_t v = b; v < e; ++v) kept[c] += used[v];
     });
     const std::vector<std::size_t> pointBase = prefixSums(kept);
     std::vector<std::uint32_t> newId = prefaultedVector(points, kNone);
     forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
         std::size_t next = pointBase[c];
         for (std::size_t v = b; v < e; ++v)
-            if (used[v].load(std::memory_order_relaxed)) newId[v] = std::uint32_t(next++);
+            if (used[v]) newId[v] = std::uint32_t(next++);
     });
-    used.reset();
 
     // Can the offsets be rewritten in place: is the output, after each candidate, no more
     // polygons than the input up to it? (Between candidates the difference stays.)
@@ -388,8 +468,18 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
     if (offsetsInPlace) mesh.offsets.resize(f + 1);
     else mesh.offsets = std::move(grown);
     mesh.indices.resize(i);
-    for (std::size_t v = 0; v < points; ++v)
-        if (newId[v] != kNone) mesh.points[newId[v]] = mesh.points[v];
+    // Points move down in runs between dropped ones (a forward copy: each lands at or before
+    // where it was read).
+    for (std::size_t v = 0; v < points;) {
+        if (newId[v] == kNone) {
+            ++v;
+            continue;
+        }
+        std::size_t e = v + 1;
+        while (e < points && newId[e] != kNone) ++e;
+        if (newId[v] != v) std::copy(mesh.points.begin() + std::ptrdiff_t(v), mesh.points.begin() + std::ptrdiff_t(e), mesh.points.begin() + std::ptrdiff_t(newId[v]));
+        v = e;
+    }
     mesh.points.resize(pointBase.back());
     return newId;
 }
@@ -430,24 +520,21 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
     std::size_t slots = 0;
     for (std::uint32_t rep : repOf)
         if (slot[rep] == kNone) slot[rep] = std::uint32_t(slots++);
-    std::vector<std::uint32_t> remap = prefaultedVector<std::uint32_t>(mesh.points.size());
-    for (std::size_t i = 0; i < remap.size(); ++i) remap[i] = std::uint32_t(i);
-    std::vector<std::uint8_t> isRep = prefaultedVector<std::uint8_t>(mesh.points.size(), 0), apart(slots, 0); // apart: representatives kept apart, by slot
+    std::vector<std::uint32_t> repOfSlot(slots);
+    for (std::uint32_t rep : repOf) repOfSlot[slot[rep]] = rep;
+    std::vector<std::uint8_t> apart(slots, 0); // representatives kept apart, by slot
     for (std::size_t k = 0; k < atNode.size(); ++k) slot[atNode[k].first] = slot[repOf[k]]; // every vertex on a node: its node's
     const std::vector<std::uint32_t> selfPolygons = countSelfPolygons(mesh, candidates, slot, slots);
     std::vector<std::uint8_t> onlyRounded(slots, !rounded.empty()); // nodes whose vertices all rounded to them
     for (std::size_t k = 0; k < rounded.size(); ++k)
         if (!rounded[k]) onlyRounded[slot[repOf[k]]] = 0;
+    std::vector<std::uint32_t> others(slots, 0); // per node: its vertices besides the representative
+    for (std::size_t k = 0; k < atNode.size(); ++k) others[slot[repOf[k]]] += atNode[k].first != repOf[k];
     for (int attempt = 0;; ++attempt) {
-        for (std::size_t k = 0; k < atNode.size(); ++k) remap[atNode[k].first] = atNode[k].first, isRep[repOf[k]] = 0;
+        Welding weld{slot, repOfSlot, std::vector<std::uint8_t>(slots, 0)};
         std::uint64_t welded = 0;
-        for (std::size_t k = 0; k < atNode.size(); ++k) {
-            const std::uint32_t v = atNode[k].first, rep = repOf[k];
-            if (apart[slot[rep]] || rep == v) continue;
-            remap[v] = rep;
-            ++welded;
-            isRep[rep] = 1;
-        }
+        for (std::size_t s = 0; s < slots; ++s)
+            if (!apart[s] && others[s] > 0) weld.welded[s] = 1, welded += others[s];
         if (welded == 0) {
             stats.separatedVertices = separateCoincidentPoints(mesh, std::move(suspects));
             return stats;
@@ -463,7 +550,7 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
             for (std::size_t k = b; k < e; ++k) {
                 const std::uint32_t f = candidates[k];
                 poly.clear();
-                for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) poly.push_back(remap[mesh.indices[i]]);
+                for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) poly.push_back(weld.target(mesh.indices[i]));
                 const std::size_t before = parts[c].count();
                 cleaner.emit(poly, parts[c]);
                 loopsOf[k] = std::uint32_t(parts[c].count() - before);
@@ -485,22 +572,23 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
         {
             std::vector<std::uint8_t> survives(slots, 0);
             for (std::uint32_t v : loops.indices)
-                if (isRep[v]) survives[slot[v]] = 1;
+                if (weld.isRep(v)) survives[slot[v]] = 1;
             for (std::uint32_t rep : repOf)
-                if (isRep[rep] && onlyRounded[slot[rep]] && !survives[slot[rep]]) apart[slot[rep]] = 1, vanished = true;
+                if (weld.isRep(rep) && onlyRounded[slot[rep]] && !survives[slot[rep]]) apart[slot[rep]] = 1, vanished = true;
         }
         // One end of each bad edge first; from the fourth attempt on, both (as few attempts as
         // before where keeping one apart moves the problem to the next node).
-        const bool bad = markNonManifoldWelds(loops, isRep, slot, slots, selfPolygons, attempt < 4, apart) || vanished;
+        const bool bad = markNonManifoldWelds(loops, weld, slot, slots, selfPolygons, attempt < 4, apart) || vanished;
         if (bad && attempt < 12) continue;
         if (bad) throw std::logic_error("lattice surface: welding iso nodes left a non-manifold edge");
 
         // Edge-manifold now, so a reversed pair is a closed piece of its own.
         std::vector<std::uint8_t> pillow;
-        std::uint64_t collapsed = markReversedPairs(loops, isRep, pillow);
+        std::uint64_t collapsed = markReversedPairs(loops, weld, pillow);
         for (std::uint64_t c : collapsedIn) collapsed += c;
         std::vector<std::uint32_t> fromCandidates;
-        const std::vector<std::uint32_t> newId = replaceCandidates(mesh, candidates, firstLoop, loops, pillow, fromCandidates);
+        const std::vector<std::uint32_t> newId =
+            replaceCandidates(mesh, candidates, firstLoop, loops, pillow, slot, polygonsToWeld != nullptr, fromCandidates);
         stats.weldedVertices = welded;
         stats.collapsedPolygons = collapsed;
         // A welded node where separate sheets touch (two blobs meeting exactly at an iso node, a
@@ -508,9 +596,10 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
         // Welded vertices lie on polygons that came from candidates alone.
         std::vector<std::uint32_t> welds;
         for (std::uint32_t rep : repOf)
-            if (isRep[rep] && newId[rep] != kNone) welds.push_back(newId[rep]);
+            if (weld.isRep(rep) && newId[rep] != kNone) welds.push_back(newId[rep]);
         const std::size_t beforeSplit = mesh.points.size();
-        stats.splitVertices = splitFansAt(mesh, welds, &fromCandidates);
+        for (const auto& [v, node] : atNode) slot[v] = kNone; // (every entry kNone now: the fans' scratch)
+        stats.splitVertices = splitFansAt(mesh, welds, &fromCandidates, &slot);
         // What is left on a node's point: its vertices kept apart, the copies of a split one.
         for (std::uint32_t& v : suspects) v = newId[v]; // (kNone where gone: skipped)
         suspects.insert(suspects.end(), welds.begin(), welds.end());

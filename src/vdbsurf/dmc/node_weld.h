@@ -39,7 +39,10 @@ struct NodeWeldStats {
 // within a few attempts (not seen on marching-cubes meshes).
 // `alsoSuspect`: further vertices that may lie on a node's point (the surface fit's).
 // `polygonsToWeld`, if given, lists (ascending) the polygons through a vertex verticesToWeld
-// names, as the mesher finds them while it makes the polygons; else the mesh is scanned for them.
+// names, as the mesher finds them while it makes the polygons, and says that every point lies on
+// a polygon (each of the mesher's vertices is the crossing of an edge that its owner cell's
+// polygon passes through): then only the points of those polygons are looked at for removal.
+// Else the mesh is scanned for them, and points no polygon used before are removed too.
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
                                const std::vector<std::uint8_t>& rounded = {}, const std::vector<std::uint32_t>& alsoSuspect = {},
                                const std::vector<std::uint32_t>* polygonsToWeld = nullptr);

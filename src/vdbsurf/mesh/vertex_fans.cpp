@@ -82,15 +82,17 @@ namespace {
 
 // Calls extra(candidate, corner, fan) for every corner at a candidate vertex that is not in the
 // fan of the vertex's first corner (fan: 1, 2, ... per further fan, in polygon order). Only the
-// listed polygons (ascending) are looked at when `polygons` is given.
+// listed polygons (ascending) are looked at when `polygons` is given. `scratch`: see splitFansAt.
 template <typename F>
 void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons,
-                           F&& extra) {
+                           std::vector<std::uint32_t>* scratch, F&& extra) {
     std::sort(candidates.begin(), candidates.end());
     candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
     if (candidates.empty()) return;
     constexpr std::uint32_t kNone = ~0u;
-    std::vector<std::uint32_t> slot = prefaultedVector(mesh.points.size(), kNone);
+    std::vector<std::uint32_t> own;
+    std::vector<std::uint32_t>& slot = scratch ? *scratch : own;
+    if (slot.size() < mesh.points.size()) resizePrefaulted(slot, mesh.points.size(), kNone);
     for (std::uint32_t i = 0; i < candidates.size(); ++i) slot[candidates[i]] = i;
     // The corners at each candidate with their polygon neighbours, in polygon order: candidate
     // s owns corners[first[s] .. first[s + 1]) (counted, then filled: no vector per candidate).
@@ -118,6 +120,7 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
             corners[fill[s]++] = {b + k, mesh.indices[b + (k + n - 1) % n], mesh.indices[b + (k + 1) % n]};
         });
     }
+    for (const std::uint32_t v : candidates) slot[v] = kNone; // (a caller's scratch left as it came)
     // Each corner's fan at its vertex (0: the fan of the vertex's first corner), per candidate
     // in parallel (each writes only its own corners), then reported in order.
     std::vector<std::uint32_t> fanOf(corners.size(), 0);
@@ -163,11 +166,12 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
 
 } // namespace
 
-std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons) {
+std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons,
+                        std::vector<std::uint32_t>* scratch) {
     std::size_t copies = 0;
     std::uint32_t lastVertex = ~0u, lastFan = 0, firstCopy = 0;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> rewrite; // (corner, new vertex)
-    forEachExtraFanCorner(mesh, std::move(candidates), polygons, [&](std::uint32_t v, std::uint32_t corner, std::uint32_t fan) {
+    forEachExtraFanCorner(mesh, std::move(candidates), polygons, scratch, [&](std::uint32_t v, std::uint32_t corner, std::uint32_t fan) {
         if (v != lastVertex) lastVertex = v, lastFan = 0, firstCopy = std::uint32_t(mesh.points.size());
         if (fan > lastFan) { // fans are numbered in order of first appearance
             mesh.points.push_back(mesh.points[v]);
@@ -183,7 +187,7 @@ std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates, const
 std::size_t countSplitFans(const Mesh& mesh, std::vector<std::uint32_t> candidates) {
     std::size_t count = 0;
     std::uint32_t lastVertex = ~0u;
-    forEachExtraFanCorner(mesh, std::move(candidates), nullptr, [&](std::uint32_t v, std::uint32_t, std::uint32_t) {
+    forEachExtraFanCorner(mesh, std::move(candidates), nullptr, nullptr, [&](std::uint32_t v, std::uint32_t, std::uint32_t) {
         if (v != lastVertex) ++count, lastVertex = v;
     });
     return count;

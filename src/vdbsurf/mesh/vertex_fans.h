@@ -26,8 +26,11 @@ std::vector<std::uint32_t> splitVertexFans(const Mesh& mesh, const std::string& 
 // touch at a point) get one copy per further fan, appended to points, so the mesh becomes
 // vertex-manifold; the fan holding the vertex's first corner in polygon order keeps it, so the
 // result is deterministic. Returns the number of copies made. When every polygon at a candidate
-// is among `polygons` (ascending), only those are looked at.
-std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons = nullptr);
+// is among `polygons` (ascending), only those are looked at. `scratch`, if given, is a number per
+// point (or fewer: it grows), every one ~0u, and is left so: a caller's array then spares a
+// fresh one's filling, which cost as much as the rest where the candidates are few.
+std::size_t splitFansAt(Mesh& mesh, std::vector<std::uint32_t> candidates, const std::vector<std::uint32_t>* polygons = nullptr,
+                        std::vector<std::uint32_t>* scratch = nullptr);
 
 // How many of `candidates` have more than one fan (what splitFansAt would split).
 std::size_t countSplitFans(const Mesh& mesh, std::vector<std::uint32_t> candidates);
