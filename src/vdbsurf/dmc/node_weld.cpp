@@ -145,8 +145,9 @@ std::vector<std::uint32_t> representatives(const std::vector<std::pair<std::uint
 }
 
 // One attempt's weld, read through the node numbering (`slot`: a vertex on a node -> its node,
-// kNone elsewhere) rather than through arrays of a number per vertex: filling those cost as much
-// as the attempts where a mesh has few vertices on nodes (a million-vertex sphere, 32 of them).
+// kNone elsewhere) rather than through two more arrays of a number per vertex: filling those cost
+// more than the attempts where a mesh has few vertices on nodes (bench_mesh's 3 M-voxel sphere:
+// 32 of its 750 k).
 // Which nodes are welded is fixed when the attempt starts, though `apart` grows during it.
 struct Welding {
     const std::vector<std::uint32_t>& slot;
@@ -396,8 +397,8 @@ std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::ve
 // read; the polygon count can grow where a pinched polygon splits, and then the offsets alone go
 // to a new array. (A rewrite into new arrays touched 6 MB of fresh memory on the armadillo, a
 // page fault per 4 KB: the weld's largest cost.) Polygons between candidates move as runs: they
-// are nearly all of them, and only their vertex numbers change. `onNode`: the vertices on the
-// nodes welded (slot[v] != kNone), all of whose polygons are candidates; `everyPointUsed`: every
+// are nearly all of them, and only their vertex numbers change. `onNode`: the vertices on nodes
+// the weld may merge (not kNone), all of whose polygons are candidates; `everyPointUsed`: every
 // point lies on a polygon (see weldNodeVertices).
 std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::uint32_t>& candidates, const std::vector<std::uint32_t>& firstLoop,
                                              const Loops& loops, const std::vector<std::uint8_t>& pillow,
