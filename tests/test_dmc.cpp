@@ -1316,6 +1316,53 @@ TEST_CASE("splitting fans with a caller's scratch array gives the same mesh and 
     }
 }
 
+TEST_CASE("the fan that comes first in polygon order keeps the vertex whatever order the threads group corners in") {
+    // Two octahedra touching at vertex 0, their polygons thousands apart in the list (the corners
+    // at a vertex are gathered in parallel over chunks of polygons, then put in order): the first
+    // octahedron's polygons keep vertex 0 and the last one's get the copy, every time.
+    const Mesh one = test::octahedronMesh();
+    Mesh base;
+    base.points = one.points;
+    base.offsets = {0};
+    auto filler = [&](int count) { // far away, apart from everything
+        for (int t = 0; t < count; ++t) {
+            const std::uint32_t b = std::uint32_t(base.points.size());
+            for (int k = 0; k < 3; ++k) base.points.push_back(Vec3f(10.0f + float(b), float(k == 1), float(k == 2)));
+            const std::uint32_t tri[3] = {b, b + 1, b + 2};
+            base.addPolygon(tri, 3);
+        }
+    };
+    // The first octahedron last in the first thousand polygons, the other first after thousands.
+    filler(1010);
+    const std::size_t firstFirst = base.polygonCount();
+    for (std::size_t f = 0; f < one.polygonCount(); ++f) base.addPolygon(one.polygon(f), one.polygonSize(f));
+    const std::size_t firstEnd = base.polygonCount();
+    filler(1030);
+    const std::uint32_t n = std::uint32_t(base.points.size());
+    for (const Vec3f& p : one.points) base.points.push_back(p + (one.points[0] - one.points[1]));
+    const std::size_t lastFirst = base.polygonCount();
+    for (std::size_t f = 0; f < one.polygonCount(); ++f) {
+        std::vector<std::uint32_t> vs(one.polygon(f), one.polygon(f) + one.polygonSize(f));
+        for (std::uint32_t& v : vs) v = v == 1 ? 0 : v + n; // its vertex 1 on the first one's vertex 0
+        base.addPolygon(vs.data(), vs.size());
+    }
+    ThreadLimit two(2);
+    for (int run = 0; run < 50; ++run) {
+        Mesh m = base;
+        REQUIRE(splitFansAt(m, {0}) == 1);
+        const std::uint32_t copy = std::uint32_t(m.points.size() - 1);
+        bool firstKeeps = true, lastMoved = true;
+        for (std::size_t f = 0; f < m.polygonCount(); ++f)
+            for (std::uint32_t i = m.offsets[f]; i < m.offsets[f + 1]; ++i) {
+                if (f >= firstFirst && f < firstEnd && m.indices[i] == copy) firstKeeps = false;
+                if (f >= lastFirst && m.indices[i] == 0) lastMoved = false;
+            }
+        INFO("run " << run);
+        CHECK(firstKeeps);
+        CHECK(lastMoved);
+    }
+}
+
 TEST_CASE("a weld that splits a pinched polygon rewrites the mesh whether its polygons grow or shrink") {
     // The weld rewrites the polygons in place when the output never runs ahead of the input, and
     // the offsets into a new array when a pinched polygon splits before enough others collapse.

@@ -6,6 +6,8 @@
 
 #include <tbb/blocked_range.h>
 #include <algorithm>
+#include <atomic>
+#include <memory>
 #include <tbb/parallel_for.h>
 
 namespace vdbsurf {
@@ -94,32 +96,40 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
     std::vector<std::uint32_t>& slot = scratch ? *scratch : own;
     if (slot.size() < mesh.points.size()) resizePrefaulted(slot, mesh.points.size(), kNone);
     for (std::uint32_t i = 0; i < candidates.size(); ++i) slot[candidates[i]] = i;
-    // The corners at each candidate with their polygon neighbours, in polygon order: candidate
-    // s owns corners[first[s] .. first[s + 1]) (counted, then filled: no vector per candidate).
+    // The corners at each candidate with their polygon neighbours: candidate s owns
+    // corners[first[s] .. first[s + 1]) (counted, then filled: no vector per candidate), both in
+    // parallel (the corner grouping was most of the time where every polygon scanned is one
+    // around a candidate); each candidate's corners are put in corner order (that of the
+    // polygons, then of the corners in each) below.
     struct Corner {
         std::uint32_t corner, prev, next;
     };
     const std::size_t scanned = polygons ? polygons->size() : mesh.polygonCount();
     auto forEachCandidateCorner = [&](auto&& visit) {
-        for (std::size_t i = 0; i < scanned; ++i) {
-            const std::size_t f = polygons ? (*polygons)[i] : i;
-            const std::uint32_t first = mesh.offsets[f], n = mesh.polygonSize(f);
-            for (std::uint32_t k = 0; k < n; ++k) {
-                const std::uint32_t s = slot[mesh.indices[first + k]];
-                if (s != kNone) visit(s, first, n, k);
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, scanned, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                const std::size_t f = polygons ? (*polygons)[i] : i;
+                const std::uint32_t first = mesh.offsets[f], n = mesh.polygonSize(f);
+                for (std::uint32_t k = 0; k < n; ++k) {
+                    const std::uint32_t s = slot[mesh.indices[first + k]];
+                    if (s != kNone) visit(s, first, n, k);
+                }
             }
-        }
-    };
-    std::vector<std::uint32_t> first(candidates.size() + 1, 0);
-    forEachCandidateCorner([&](std::uint32_t s, std::uint32_t, std::uint32_t, std::uint32_t) { ++first[s + 1]; });
-    for (std::size_t s = 0; s < candidates.size(); ++s) first[s + 1] += first[s];
-    std::vector<Corner> corners(first.back());
-    {
-        std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
-        forEachCandidateCorner([&](std::uint32_t s, std::uint32_t b, std::uint32_t n, std::uint32_t k) {
-            corners[fill[s]++] = {b + k, mesh.indices[b + (k + n - 1) % n], mesh.indices[b + (k + 1) % n]};
         });
+    };
+    std::unique_ptr<std::atomic<std::uint32_t>[]> fill(new std::atomic<std::uint32_t>[candidates.size()]);
+    for (std::size_t s = 0; s < candidates.size(); ++s) fill[s].store(0, std::memory_order_relaxed);
+    forEachCandidateCorner([&](std::uint32_t s, std::uint32_t, std::uint32_t, std::uint32_t) { fill[s].fetch_add(1, std::memory_order_relaxed); });
+    std::vector<std::uint32_t> first(candidates.size() + 1, 0);
+    for (std::size_t s = 0; s < candidates.size(); ++s) {
+        first[s + 1] = first[s] + fill[s].load(std::memory_order_relaxed);
+        fill[s].store(first[s], std::memory_order_relaxed);
     }
+    std::vector<Corner> corners(first.back());
+    forEachCandidateCorner([&](std::uint32_t s, std::uint32_t b, std::uint32_t n, std::uint32_t k) {
+        corners[fill[s].fetch_add(1, std::memory_order_relaxed)] = {b + k, mesh.indices[b + (k + n - 1) % n], mesh.indices[b + (k + 1) % n]};
+    });
+    fill.reset();
     for (const std::uint32_t v : candidates) slot[v] = kNone; // (a caller's scratch left as it came)
     // Each corner's fan at its vertex (0: the fan of the vertex's first corner), per candidate
     // in parallel (each writes only its own corners), then reported in order.
@@ -128,8 +138,9 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
         std::vector<std::uint32_t> parent, fanOfRoot;
         std::vector<std::pair<std::uint32_t, std::uint32_t>> byNeighbour; // (neighbour vertex, corner slot)
         for (std::size_t s = r.begin(); s < r.end(); ++s) {
-            const Corner* at = corners.data() + first[s];
+            Corner* at = corners.data() + first[s];
             const std::uint32_t count = first[s + 1] - first[s];
+            std::sort(at, at + count, [](const Corner& x, const Corner& y) { return x.corner < y.corner; });
             if (count < 2) continue;
             // Corners sharing an edge at the vertex (a neighbour vertex) are in one fan.
             parent.resize(count);
