@@ -2,6 +2,7 @@
 // closed where that keeps the surface an edge-manifold, and not made by the mesher.
 #include "support/test_support.h"
 
+#include "vdbsurf/core/threads.h"
 #include "vdbsurf/density/scene_json.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/grid_field.h"
@@ -89,6 +90,47 @@ TEST_CASE("closeFolds: only the listed polygons are looked at", "[folds]") {
     CHECK(checkTopology(m).foldedVertices == 1);
     CHECK(closeFolds(m, {0, 1}, scratch).closed == 1);
     CHECK(checkTopology(m).foldedVertices == 0);
+}
+
+TEST_CASE("closeFolds: each corner is compared with the first polygon listed at its vertex however far apart", "[folds]") {
+    // At vertex 0: a triangle, then (thousands of polygons later, in other tasks) two quads
+    // folded onto each other there (at 0 alone: their other corners differ). A fold between a
+    // vertex's second and third polygons is not one (the vertex is not vertex-manifold):
+    // compared with the first, neither is folded. Without the triangle the fold is closed.
+    Mesh m;
+    m.points = {Vec3f(0, 0, 0), Vec3f(1, 0, 0), Vec3f(0, 1, 0), Vec3f(0, 0, 1), Vec3f(1, 1, 1), Vec3f(2, 1, 1), Vec3f(1, 2, 1)};
+    m.offsets = {0};
+    auto filler = [&](int count) { // apart from everything
+        for (int t = 0; t < count; ++t) {
+            const std::uint32_t b = std::uint32_t(m.points.size());
+            for (int k = 0; k < 3; ++k) m.points.push_back(Vec3f(10.0f + float(b), float(k == 1), float(k == 2)));
+            m.addPolygon({b, b + 1, b + 2});
+        }
+    };
+    m.addPolygon({0, 1, 2});
+    filler(1500);
+    m.addPolygon({0, 3, 5, 4});
+    filler(1500);
+    m.addPolygon({0, 4, 6, 3});
+    ThreadLimit two(2);
+    for (const bool withTriangle : {true, false}) {
+        Mesh start = m;
+        if (!withTriangle) { // polygon 0 dropped
+            start.indices.erase(start.indices.begin(), start.indices.begin() + 3);
+            start.offsets.erase(start.offsets.begin() + 1);
+            for (std::uint32_t& o : start.offsets) o = o == 0 ? 0 : o - 3;
+        }
+        std::vector<std::uint32_t> all(start.polygonCount());
+        std::iota(all.begin(), all.end(), 0u);
+        for (int run = 0; run < 10; ++run) {
+            Mesh copy = start;
+            std::vector<std::uint32_t> scratch;
+            INFO("with the triangle: " << withTriangle << ", run " << run);
+            CHECK(closeFolds(copy, all, scratch).closed == (withTriangle ? 0u : 1u));
+            CHECK(copy.polygonCount() == start.polygonCount());
+            CHECK((copy.indices == start.indices) == withTriangle);
+        }
+    }
 }
 
 TEST_CASE("closeFolds: a pillow of two triangles goes, and a fold whose new edge exists stays", "[folds]") {
