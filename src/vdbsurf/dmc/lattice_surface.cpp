@@ -853,10 +853,21 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
     });
     if (im.options.cancel) im.options.cancel->check();
     // The leaves' own arrays (several a leaf) are done with: freed now and in parallel, they
-    // were a serial tail of the mesher, and the weld below reuses their memory.
+    // were a serial tail of the mesher, and the weld below reuses their memory. So are the
+    // leaves' lists of polygons to weld, once joined in leaf order.
+    std::vector<std::uint32_t> polygonsToWeld;
+    std::vector<std::size_t> weldBase(weldPolygons.size() + 1, 0);
+    for (std::size_t li = 0; li < weldPolygons.size(); ++li) weldBase[li + 1] = weldBase[li] + weldPolygons[li].size();
+    polygonsToWeld.resize(weldBase.back());
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t li = r.begin(); li < r.end(); ++li) im.work[li] = LeafWork();
+        for (std::size_t li = r.begin(); li < r.end(); ++li) {
+            im.work[li] = LeafWork();
+            if (weldPolygons.empty()) continue;
+            std::copy(weldPolygons[li].begin(), weldPolygons[li].end(), polygonsToWeld.begin() + std::ptrdiff_t(weldBase[li]));
+            weldPolygons[li] = {};
+        }
     });
+    weldPolygons.clear();
     std::vector<std::uint32_t> added; // by beforeWeld (the surface fit: vertices on feature points among them)
     if (beforeWeld) {
         std::vector<std::uint32_t> toWeld(atNode.size());
@@ -865,9 +876,6 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
         beforeWeld(mesh, toWeld);
         for (std::size_t v = before; v < mesh.points.size(); ++v) added.push_back(std::uint32_t(v));
     }
-    std::vector<std::uint32_t> polygonsToWeld;
-    for (const std::vector<std::uint32_t>& p : weldPolygons) polygonsToWeld.insert(polygonsToWeld.end(), p.begin(), p.end());
-    weldPolygons.clear();
     const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added, mayWeld.empty() ? nullptr : &polygonsToWeld);
     im.stats.weldedVertices = welding.weldedVertices;
     im.stats.collapsedPolygons = welding.collapsedPolygons;
