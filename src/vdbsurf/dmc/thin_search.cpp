@@ -550,6 +550,9 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
             double block[125], around[27];
             std::uint64_t evaluated = 0, examined = 0;
             for (std::size_t fi = r.begin(); fi < r.end(); ++fi) {
+                // (A round over a fine lattice's frontier can take minutes: a cancelled run stops
+                // here, and the check after the loop throws.)
+                if (options.cancel && options.cancel->cancelled()) return;
                 const Coord p = frontier[fi];
                 // Values at the 5x5x5 nodes around p (3x3x3 around each node between).
                 field.sampleNodes(frame, Vec3i(p.x() - 2, p.y() - 2, p.z() - 2), {5, 5, 5}, nullptr, block);
