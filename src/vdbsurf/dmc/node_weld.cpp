@@ -1,5 +1,6 @@
 #include "vdbsurf/dmc/node_weld.h"
 
+#include "vdbsurf/core/fixed_chunks.h"
 #include "vdbsurf/core/prefault.h"
 #include "vdbsurf/mesh/mesh_folds.h"
 #include "vdbsurf/mesh/separate_points.h"
@@ -25,13 +26,11 @@ constexpr std::uint32_t kNone = ~0u;
 // joined in chunk order: the output is the same with any number of threads.
 constexpr std::size_t kChunk = 2048;
 
-std::size_t chunkCount(std::size_t n) { return (n + kChunk - 1) / kChunk; }
+std::size_t chunkCount(std::size_t n) { return fixedChunkCount(n, kChunk); }
 
 template <typename Body>
 void forEachChunk(std::size_t n, Body&& body) {
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunkCount(n), 1), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t c = r.begin(); c < r.end(); ++c) body(c, c * kChunk, std::min(n, (c + 1) * kChunk));
-    });
+    forEachFixedChunk(n, kChunk, body);
 }
 
 // Exclusive prefix sums of `counts`, with the total appended.
@@ -324,10 +323,24 @@ std::pair<std::size_t, std::size_t> candidatesIn(const std::vector<std::uint32_t
     return {std::size_t(lo - candidates.begin()), std::size_t(hi - candidates.begin())};
 }
 
+// body(chunk, first, last) for the index range [first, last) of each run of polygons between
+// candidates, over fixed chunks of the polygons.
+template <typename Body>
+void forEachRunBetween(const Mesh& mesh, const std::vector<std::uint32_t>& candidates, Body&& body) {
+    forEachChunk(mesh.polygonCount(), [&](std::size_t c, std::size_t b, std::size_t e) {
+        const auto [k0, k1] = candidatesIn(candidates, b, e);
+        std::size_t f = b;
+        for (std::size_t k = k0; k <= k1; ++k) {
+            const std::size_t until = k < k1 ? std::size_t(candidates[k]) : e;
+            body(c, mesh.offsets[f], mesh.offsets[until]);
+            f = until + 1;
+        }
+    });
+}
+
 // Which points a polygon uses once the candidates are replaced by their kept loops (1), found
 // by marking the points of every polygon between candidates and of every kept loop.
-std::vector<std::uint8_t> pointsUsedAfter(const Mesh& mesh, const std::vector<std::uint32_t>& candidates,
-                                          const std::vector<std::uint32_t>& firstLoop, const Loops& loops,
+std::vector<std::uint8_t> pointsUsedAfter(const Mesh& mesh, const std::vector<std::uint32_t>& candidates, const Loops& loops,
                                           const std::vector<std::uint8_t>& pillow) {
     const std::size_t points = mesh.points.size();
     // (Atomic: two chunks may mark one point.)
@@ -338,17 +351,12 @@ std::vector<std::uint8_t> pointsUsedAfter(const Mesh& mesh, const std::vector<st
     auto use = [&](const std::uint32_t* p, std::size_t n) {
         for (std::size_t i = 0; i < n; ++i) used[p[i]].store(1, std::memory_order_relaxed);
     };
-    forEachChunk(mesh.polygonCount(), [&](std::size_t, std::size_t b, std::size_t e) {
-        const auto [k0, k1] = candidatesIn(candidates, b, e);
-        std::size_t f = b;
-        for (std::size_t k = k0; k <= k1; ++k) {
-            const std::size_t until = k < k1 ? std::size_t(candidates[k]) : e;
-            use(mesh.indices.data() + mesh.offsets[f], mesh.offsets[until] - mesh.offsets[f]);
-            if (k == k1) break;
-            for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l)
-                if (!pillow[l]) use(loops.loop(l), loops.size(l));
-            f = until + 1;
-        }
+    forEachRunBetween(mesh, candidates, [&](std::size_t, std::uint32_t first, std::uint32_t last) {
+        use(mesh.indices.data() + first, last - first);
+    });
+    forEachChunk(loops.count(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t l = b; l < e; ++l)
+            if (!pillow[l]) use(loops.loop(l), loops.size(l));
     });
     std::vector<std::uint8_t> out = prefaultedVector<std::uint8_t>(points, 0);
     forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
@@ -363,8 +371,7 @@ std::vector<std::uint8_t> pointsUsedAfter(const Mesh& mesh, const std::vector<st
 // candidates does. A vertex on a welded node lies on candidates alone; another point of a
 // candidate that no kept loop holds (rare: its polygons there all collapsed) is looked for
 // among the rest.
-std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::vector<std::uint32_t>& candidates,
-                                                 const std::vector<std::uint32_t>& firstLoop, const Loops& loops,
+std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::vector<std::uint32_t>& candidates, const Loops& loops,
                                                  const std::vector<std::uint8_t>& pillow, const std::vector<std::uint32_t>& onNode) {
     constexpr std::uint8_t kUnsure = 2;
     std::vector<std::uint8_t> used = prefaultedVector<std::uint8_t>(mesh.points.size(), 1);
@@ -381,15 +388,9 @@ std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::ve
         }
     if (!unsure.empty()) {
         std::vector<std::vector<std::uint32_t>> found(chunkCount(mesh.polygonCount()));
-        forEachChunk(mesh.polygonCount(), [&](std::size_t c, std::size_t b, std::size_t e) {
-            const auto [k0, k1] = candidatesIn(candidates, b, e);
-            std::size_t f = b;
-            for (std::size_t k = k0; k <= k1; ++k) {
-                const std::size_t until = k < k1 ? std::size_t(candidates[k]) : e;
-                for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[until]; ++i)
-                    if (used[mesh.indices[i]] == kUnsure) found[c].push_back(mesh.indices[i]);
-                f = until + 1;
-            }
+        forEachRunBetween(mesh, candidates, [&](std::size_t c, std::uint32_t first, std::uint32_t last) {
+            for (std::uint32_t i = first; i < last; ++i)
+                if (used[mesh.indices[i]] == kUnsure) found[c].push_back(mesh.indices[i]);
         });
         for (const auto& vs : found)
             for (const std::uint32_t v : vs) used[v] = 1;
@@ -415,8 +416,8 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
                                              const std::vector<std::uint32_t>& onNode, bool everyPointUsed,
                                              std::vector<std::uint32_t>& fromCandidates) {
     const std::size_t polygons = mesh.polygonCount(), points = mesh.points.size();
-    const std::vector<std::uint8_t> used = everyPointUsed ? pointsLeftByCandidates(mesh, candidates, firstLoop, loops, pillow, onNode)
-                                                          : pointsUsedAfter(mesh, candidates, firstLoop, loops, pillow);
+    const std::vector<std::uint8_t> used = everyPointUsed ? pointsLeftByCandidates(mesh, candidates, loops, pillow, onNode)
+                                                          : pointsUsedAfter(mesh, candidates, loops, pillow);
     std::vector<std::uint32_t> kept(chunkCount(points), 0);
     forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
         for (std::size_t v = b; v < e; ++v) kept[c] += used[v];

@@ -1,7 +1,6 @@
 #include "vdbsurf/mesh/mesh_folds.h"
 
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
+#include "vdbsurf/core/fixed_chunks.h"
 
 #include <algorithm>
 
@@ -28,13 +27,7 @@ std::vector<Fold> findFolds(const Mesh& mesh, const std::vector<std::uint32_t>& 
     if (firstAt.size() < mesh.points.size()) firstAt.resize(mesh.points.size());
     std::uint32_t* first = firstAt.data();
     // (GCC's atomic builtins on the plain array: several chunks write one vertex's entry.)
-    const std::size_t chunks = (polygons.size() + kFoldChunk - 1) / kFoldChunk;
-    auto forEachChunk = [&](auto&& body) {
-        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, chunks, 1), [&](const tbb::blocked_range<std::size_t>& r) {
-            for (std::size_t c = r.begin(); c < r.end(); ++c)
-                body(c, c * kFoldChunk, std::min(polygons.size(), (c + 1) * kFoldChunk));
-        });
-    };
+    auto forEachChunk = [&](auto&& body) { forEachFixedChunk(polygons.size(), kFoldChunk, body); };
     forEachChunk([&](std::size_t, std::size_t b, std::size_t e) {
         for (std::size_t k = b; k < e; ++k)
             for (std::uint32_t c = mesh.offsets[polygons[k]]; c < mesh.offsets[polygons[k] + 1]; ++c)
@@ -56,7 +49,7 @@ std::vector<Fold> findFolds(const Mesh& mesh, const std::vector<std::uint32_t>& 
         prev = v[at > 0 ? at - 1 : n - 1];
         next = v[at + 1 < n ? at + 1 : 0];
     };
-    std::vector<std::vector<Fold>> found(chunks);
+    std::vector<std::vector<Fold>> found(fixedChunkCount(polygons.size(), kFoldChunk));
     forEachChunk([&](std::size_t chunk, std::size_t b, std::size_t e) {
         for (std::size_t k = b; k < e; ++k) {
             const std::uint32_t f = polygons[k], n = mesh.polygonSize(f);
