@@ -128,15 +128,9 @@ int main(int argc, char** argv) {
 
         // One thread and two in turn, once a round (bench::measureInterleaved): the drift of a
         // shared machine falls on both alike, and the speed-up is the median of the rounds' ratios.
-        auto withThreads = [](int threads, std::function<void()> fn) {
-            return [threads, fn] {
-                ThreadLimit limit(threads);
-                fn();
-            };
-        };
         std::vector<float> dense(std::size_t(dims.x) * dims.y * dims.z);
-        const bench::Interleaved d = bench::measureInterleaved(n > 128 ? 1 : repeat, {withThreads(1, [&] { evaluateDense(scene, h, first, dims, dense.data()); }),
-                                                                                         withThreads(2, [&] { evaluateDense(scene, h, first, dims, dense.data()); })});
+        const bench::Interleaved d = bench::measureInterleaved(n > 128 ? 1 : repeat, {bench::withThreads(1, [&] { evaluateDense(scene, h, first, dims, dense.data()); }),
+                                                                                         bench::withThreads(2, [&] { evaluateDense(scene, h, first, dims, dense.data()); })});
         const double denseSeconds[3] = {0, d.medians[0].seconds, d.medians[1].seconds};
         row("dense (every voxel)", 1, denseSeconds[1], dense.size(), 0, 0, 1.0, "");
         row("dense (every voxel)", 2, denseSeconds[2], dense.size(), 0, 0, d.medianRatio(0, 1), "vs 1 thread");
@@ -146,8 +140,8 @@ int main(int argc, char** argv) {
             o.voxelSize = h;
             o.surfaceOnly = surfaceOnly;
             RasterStats st;
-            const bench::Interleaved t = bench::measureInterleaved(repeat, {withThreads(1, [&] { st = DensityRaster(scene, o).stats(); }),
-                                                                            withThreads(2, [&] { st = DensityRaster(scene, o).stats(); })});
+            const bench::Interleaved t = bench::measureInterleaved(repeat, {bench::withThreads(1, [&] { st = DensityRaster(scene, o).stats(); }),
+                                                                            bench::withThreads(2, [&] { st = DensityRaster(scene, o).stats(); })});
             const std::string method = surfaceOnly ? "sparse, surface only" : "sparse";
             for (int threads : {1, 2})
                 row(method, threads, t.medians[threads - 1].seconds, st.voxelsEvaluated, st.leavesEvaluated, st.leafTiles + st.nodeTiles,

@@ -100,20 +100,14 @@ int main(int argc, char** argv) {
             verts = m.points.size();
             polys = m.polygonCount();
         };
-        auto oneThread = [](const std::function<void()>& fn) {
-            return [fn] {
-                ThreadLimit one(1);
-                fn();
-            };
-        };
         enum { kRef, kMc, kDmc, kRefOne, kDmcOne };
         std::vector<std::function<void()>> runs{reference, [&] { ours(MeshMethod::MarchingCubes, mcVerts, mcPolys); },
                                                 [&] { ours(MeshMethod::Dmc, dmcVerts, dmcPolys); }};
         // volumeToMesh's own speed-up on this machine, beside DMC's: a 2-thread target is only as
         // good as the machine's cores, which these shared VMs do not always give in full.
         if (limit.threads() > 1) {
-            runs.push_back(oneThread(reference));
-            runs.push_back(oneThread([&] {
+            runs.push_back(bench::withThreads(1, reference));
+            runs.push_back(bench::withThreads(1, [&] {
                 std::size_t v1 = 0, p1 = 0;
                 ours(MeshMethod::Dmc, v1, p1);
             }));

@@ -1,6 +1,7 @@
 #include "bench_support.h"
 
 #include "vdbsurf/core/atomic_file.h"
+#include "vdbsurf/core/threads.h"
 
 #include <algorithm>
 #include <chrono>
@@ -68,6 +69,13 @@ Interleaved measureInterleaved(int repeat, const std::vector<std::function<void(
         }
     for (std::size_t f = 0; f < fns.size(); ++f) out.medians[f].seconds = median(out.seconds[f]);
     return out;
+}
+
+std::function<void()> withThreads(int threads, std::function<void()> fn) {
+    return [threads, fn = std::move(fn)] {
+        ThreadLimit limit(threads);
+        fn();
+    };
 }
 
 double Interleaved::medianRatio(std::size_t a, std::size_t b) const {

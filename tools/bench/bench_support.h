@@ -34,6 +34,9 @@ struct Interleaved {
 };
 Interleaved measureInterleaved(int repeat, const std::vector<std::function<void()>>& fns);
 
+// fn run under a ThreadLimit of `threads` (as one of measureInterleaved's functions).
+std::function<void()> withThreads(int threads, std::function<void()> fn);
+
 // ../shared/data/<relative> seen from the source tree, or "" when absent.
 std::string sharedData(const std::string& relative);
 
