@@ -27,8 +27,10 @@ Progress::~Progress() {
 
 void Progress::advance(std::uint64_t units) {
     if (mCancel) mCancel->check();
-    mDone.fetch_add(units, std::memory_order_relaxed);
+    // Only a printed line reads the count: off a terminal, threads advancing leaf by leaf would
+    // pass its cache line between cores for nothing.
     if (!mEnabled) return;
+    mDone.fetch_add(units, std::memory_order_relaxed);
     const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - mStart).count();
     std::int64_t next = mNextPrintNs.load(std::memory_order_relaxed);
     const std::int64_t due = next < 0 ? -next : next;

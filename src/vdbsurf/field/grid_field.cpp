@@ -67,9 +67,8 @@ public:
     using Node2T = typename RootT::ChildNodeType;
     using Acc = openvdb::tree::ValueAccessor<const TreeT, /*IsSafe=*/false>;
 
-    TypedGrid(typename GridT::ConstPtr grid, const std::string& label) : mGrid(std::move(grid)), mTree(mGrid->constTree()) {
-        const openvdb::math::MapBase& map = *mGrid->transform().baseMap(); // linear: GridField checked
-        const openvdb::Mat4d m = map.getAffineMap()->getConstMat4();
+    TypedGrid(typename GridT::ConstPtr grid, const std::string& label) : mGrid(std::move(grid)), mTree(mGrid->constTree()), mMap(mGrid->transform().baseMap().get()) {
+        const openvdb::Mat4d m = mMap->getAffineMap()->getConstMat4();
         mAxisAligned = true;
         for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c)
@@ -157,7 +156,7 @@ public:
             hi[a] += 0.5;
             g[a] = double(openvdb::tools::BoxSampler::sample(acc, hi)) - double(openvdb::tools::BoxSampler::sample(acc, lo));
         }
-        return toVec(mGrid->transform().baseMap()->applyIJT(g));
+        return toVec(mMap->applyIJT(g));
     }
 
     double valueAndGradient(const Vec3d& p, Vec3d& gradient) const override {
@@ -193,7 +192,7 @@ public:
         };
         openvdb::Vec3d g;
         for (int a = 0; a < 3; ++a) g[a] = sample(2 + 2 * a) - sample(1 + 2 * a);
-        gradient = toVec(mGrid->transform().baseMap()->applyIJT(g));
+        gradient = toVec(mMap->applyIJT(g));
         return sample(0);
     }
 
@@ -715,6 +714,10 @@ private:
 
     typename GridT::ConstPtr mGrid;
     const TreeT& mTree;
+    // The grid's map, held by its transform for mGrid's life. Read through this pointer:
+    // transform().baseMap() returns a shared_ptr copy, whose reference count two threads asking
+    // for gradients at once bounce between their cores.
+    const openvdb::math::MapBase* mMap;
     bool mAxisAligned = false;
     double mVoxel = 1.0;
     Vec3d mOrigin;
