@@ -12,6 +12,7 @@
 #include <openvdb/tree/LeafManager.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <array>
@@ -852,22 +853,27 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
         }
     });
     if (im.options.cancel) im.options.cancel->check();
-    // The leaves' own arrays (several a leaf) are done with: freed now and in parallel, they
-    // were a serial tail of the mesher, and the weld below reuses their memory. So are the
-    // leaves' lists of polygons to weld, once joined in leaf order.
+    // The leaves' lists of polygons to weld, joined in leaf order.
     std::vector<std::uint32_t> polygonsToWeld;
     std::vector<std::size_t> weldBase(weldPolygons.size() + 1, 0);
     for (std::size_t li = 0; li < weldPolygons.size(); ++li) weldBase[li + 1] = weldBase[li] + weldPolygons[li].size();
     polygonsToWeld.resize(weldBase.back());
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t li = r.begin(); li < r.end(); ++li) {
-            im.work[li] = LeafWork();
-            if (weldPolygons.empty()) continue;
-            std::copy(weldPolygons[li].begin(), weldPolygons[li].end(), polygonsToWeld.begin() + std::ptrdiff_t(weldBase[li]));
-            weldPolygons[li] = {};
-        }
+    if (!weldPolygons.empty())
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t li = r.begin(); li < r.end(); ++li)
+                std::copy(weldPolygons[li].begin(), weldPolygons[li].end(), polygonsToWeld.begin() + std::ptrdiff_t(weldBase[li]));
+        });
+    weldPolygons = {};
+    // The leaves' own arrays (several a leaf) are done with: freed by a task of their own while
+    // the weld runs (its short parallel loops leave the other threads idle at times; freed before
+    // it, they were a serial tail of the mesher, then a contended one: each leaf's arrays came
+    // from the heap of the thread that made them).
+    tbb::task_group teardown;
+    teardown.run([&] {
+        tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leafCount, 64), [&](const tbb::blocked_range<std::size_t>& r) {
+            for (std::size_t li = r.begin(); li < r.end(); ++li) im.work[li] = LeafWork();
+        });
     });
-    weldPolygons.clear();
     std::vector<std::uint32_t> added; // by beforeWeld (the surface fit: vertices on feature points among them)
     if (beforeWeld) {
         std::vector<std::uint32_t> toWeld(atNode.size());
@@ -877,7 +883,9 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
         for (std::size_t v = before; v < mesh.points.size(); ++v) added.push_back(std::uint32_t(v));
     }
     const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added, mayWeld.empty() ? nullptr : &polygonsToWeld);
+    teardown.wait();
     im.stats.weldedVertices = welding.weldedVertices;
+
     im.stats.collapsedPolygons = welding.collapsedPolygons;
     im.stats.splitVertices = welding.splitVertices;
     im.stats.foldsClosed = welding.foldsClosed;
