@@ -1019,15 +1019,21 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     {
         std::vector<Coord> candidates;
         {
+            // Moved nodes off the surface beside one on it, found from the moved side: those
+            // are few (the placed nodes are moved too, and skipped with one probe each), where
+            // six probes around each placed node were 0.3 ms of the armadillo's serial time.
             NodeStates states(deformation);
-            for (auto it = deformation.onSurface->cbeginValueOn(); it; ++it)
-                for (int k = 0; k < 6; ++k) {
-                    const Coord c = it.getCoord() + axisStep(k / 2, k % 2 ? 1 : -1);
-                    if (states.offsets.isValueOn(c) && !states.onSurface.isValueOn(c)) candidates.push_back(c);
-                }
+            for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
+                const Coord c = it.getCoord();
+                if (states.onSurface.isValueOn(c)) continue;
+                for (int k = 0; k < 6; ++k)
+                    if (states.onSurface.isValueOn(c + axisStep(k / 2, k % 2 ? 1 : -1))) {
+                        candidates.push_back(c);
+                        break;
+                    }
+            }
         }
-        std::sort(candidates.begin(), candidates.end());
-        candidates.erase(std::unique(candidates.begin(), candidates.end()), candidates.end());
+        std::sort(candidates.begin(), candidates.end()); // (the tree's order is not the coordinates')
         // Each test reads the one state and writes nothing: in parallel (27 field samples each).
         std::vector<std::uint8_t> closes(candidates.size(), 0);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, candidates.size(), 32), [&](const tbb::blocked_range<std::size_t>& r) {
