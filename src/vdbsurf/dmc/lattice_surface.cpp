@@ -885,7 +885,6 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
     const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added, mayWeld.empty() ? nullptr : &polygonsToWeld);
     teardown.wait();
     im.stats.weldedVertices = welding.weldedVertices;
-
     im.stats.collapsedPolygons = welding.collapsedPolygons;
     im.stats.splitVertices = welding.splitVertices;
     im.stats.foldsClosed = welding.foldsClosed;

@@ -67,8 +67,9 @@ public:
     using Node2T = typename RootT::ChildNodeType;
     using Acc = openvdb::tree::ValueAccessor<const TreeT, /*IsSafe=*/false>;
 
-    TypedGrid(typename GridT::ConstPtr grid, const std::string& label) : mGrid(std::move(grid)), mTree(mGrid->constTree()), mMap(mGrid->transform().baseMap().get()) {
-        const openvdb::Mat4d m = mMap->getAffineMap()->getConstMat4();
+    TypedGrid(typename GridT::ConstPtr grid, const std::string& label)
+        : mGrid(std::move(grid)), mTree(mGrid->constTree()), mMap(mGrid->transform().baseMap().get()) {
+        const openvdb::Mat4d m = mMap->getAffineMap()->getConstMat4(); // linear: GridField checked
         mAxisAligned = true;
         for (int r = 0; r < 3; ++r)
             for (int c = 0; c < 3; ++c)
