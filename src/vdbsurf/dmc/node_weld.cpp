@@ -375,17 +375,30 @@ std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::ve
                                                  const std::vector<std::uint8_t>& pillow, const std::vector<std::uint32_t>& onNode) {
     constexpr std::uint8_t kUnsure = 2;
     std::vector<std::uint8_t> used = prefaultedVector<std::uint8_t>(mesh.points.size(), 1);
-    for (const std::uint32_t f : candidates)
-        for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) used[mesh.indices[i]] = 0;
-    for (std::size_t l = 0; l < loops.count(); ++l)
-        if (!pillow[l])
-            for (std::uint32_t i = 0; i < loops.size(l); ++i) used[loops.loop(l)[i]] = 1;
+    // Three passes in parallel (each a scattered read of the candidates: most of the time is
+    // waiting for memory). Polygons of different tasks share points: the flags are stored and
+    // read with GCC's relaxed atomics, and each pass writes one value, so the outcome is the
+    // serial one's. A point may enter `unsure` twice: harmless.
+    auto store = [&](std::uint32_t v, std::uint8_t value) { __atomic_store_n(&used[v], value, __ATOMIC_RELAXED); };
+    forEachChunk(candidates.size(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t k = b; k < e; ++k)
+            for (std::uint32_t i = mesh.offsets[candidates[k]]; i < mesh.offsets[candidates[k] + 1]; ++i) store(mesh.indices[i], 0);
+    });
+    forEachChunk(loops.count(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t l = b; l < e; ++l)
+            if (!pillow[l])
+                for (std::uint32_t i = 0; i < loops.size(l); ++i) store(loops.loop(l)[i], 1);
+    });
+    std::vector<std::vector<std::uint32_t>> unsureIn(chunkCount(candidates.size()));
+    forEachChunk(candidates.size(), [&](std::size_t c, std::size_t b, std::size_t e) {
+        for (std::size_t k = b; k < e; ++k)
+            for (std::uint32_t i = mesh.offsets[candidates[k]]; i < mesh.offsets[candidates[k] + 1]; ++i) {
+                const std::uint32_t v = mesh.indices[i];
+                if (__atomic_load_n(&used[v], __ATOMIC_RELAXED) == 0 && onNode[v] == kNone) store(v, kUnsure), unsureIn[c].push_back(v);
+            }
+    });
     std::vector<std::uint32_t> unsure;
-    for (const std::uint32_t f : candidates)
-        for (std::uint32_t i = mesh.offsets[f]; i < mesh.offsets[f + 1]; ++i) {
-            const std::uint32_t v = mesh.indices[i];
-            if (used[v] == 0 && onNode[v] == kNone) used[v] = kUnsure, unsure.push_back(v);
-        }
+    for (const auto& u : unsureIn) unsure.insert(unsure.end(), u.begin(), u.end());
     if (!unsure.empty()) {
         std::vector<std::vector<std::uint32_t>> found(chunkCount(mesh.polygonCount()));
         forEachRunBetween(mesh, candidates, [&](std::size_t c, std::uint32_t first, std::uint32_t last) {
