@@ -443,68 +443,123 @@ std::vector<std::uint32_t> replaceCandidates(Mesh& mesh, const std::vector<std::
             if (used[v]) newId[v] = std::uint32_t(next++);
     });
 
+    // Per candidate, as sums over those before it: its indices, its kept loops and their indices.
     // Can the offsets be rewritten in place: is the output, after each candidate, no more
     // polygons than the input up to it? (Between candidates the difference stays.)
-    std::size_t keptPolygons = polygons, loopsSoFar = 0;
+    const std::size_t K = candidates.size();
+    std::vector<std::uint64_t> candidateIndicesBefore(K + 1, 0), loopsBefore(K + 1, 0), loopIndicesBefore(K + 1, 0);
     bool offsetsInPlace = true;
-    for (std::size_t k = 0; k < candidates.size(); ++k) {
-        std::size_t mine = 0;
-        for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l) mine += !pillow[l];
-        loopsSoFar += mine;
-        keptPolygons = keptPolygons - 1 + mine;
-        offsetsInPlace = offsetsInPlace && std::size_t(candidates[k]) - k + loopsSoFar <= std::size_t(candidates[k]) + 1;
+    for (std::size_t k = 0; k < K; ++k) {
+        std::uint64_t mine = 0, mineIndices = 0;
+        for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l)
+            if (!pillow[l]) ++mine, mineIndices += loops.size(l);
+        const std::size_t c = candidates[k];
+        candidateIndicesBefore[k + 1] = candidateIndicesBefore[k] + (mesh.offsets[c + 1] - mesh.offsets[c]);
+        loopsBefore[k + 1] = loopsBefore[k] + mine;
+        loopIndicesBefore[k + 1] = loopIndicesBefore[k] + mineIndices;
+        offsetsInPlace = offsetsInPlace && c - k + loopsBefore[k + 1] <= c + 1;
     }
+    const std::size_t keptPolygons = polygons - K + loopsBefore[K];
+    const std::size_t keptIndices = mesh.indices.size() - candidateIndicesBefore[K] + loopIndicesBefore[K];
     std::vector<std::uint32_t> grown;
     if (!offsetsInPlace) grown.resize(keptPolygons + 1, 0);
     std::uint32_t* offsets = offsetsInPlace ? mesh.offsets.data() : grown.data();
     std::uint32_t* indices = mesh.indices.data();
-    // The vertex numbers first, where they stand, in parallel (a candidate's own are overwritten
-    // by its loops below); then the runs between candidates only move, serially.
-    forEachChunk(mesh.indices.size(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t j = b; j < e; ++j) indices[j] = newId[indices[j]];
+
+    // The polygons are rewritten in segments, in parallel, each front to back as one serial pass
+    // would (vertex numbers renumbered as they move). Nothing lands after where it was read, so
+    // a segment's writes stay within what it reads itself, except its first outputs, which land
+    // below its input, where the segment before may not have read yet: those are kept aside
+    // and put in place when all are done. (Moved serially, these were the weld's largest step
+    // on meshes with few candidates.)
+    struct Segment {
+        std::size_t first = 0, kFirst = 0;           // input: first polygon, first candidate
+        std::size_t outPolygons = 0, outIndices = 0; // output written before the segment
+        std::uint32_t inIndex = 0;                   // mesh.offsets[first]
+        std::size_t endPolygons = 0, endIndices = 0; // output written after it
+        std::vector<std::uint32_t> heldOffsets, heldIndices, fromCandidates;
+    };
+    const std::size_t segmentCount = std::clamp<std::size_t>(polygons / 8192, 1, 64);
+    std::vector<Segment> segments(segmentCount);
+    for (std::size_t s = 0; s < segmentCount; ++s) {
+        Segment& seg = segments[s];
+        seg.first = polygons * s / segmentCount;
+        seg.kFirst = std::size_t(std::lower_bound(candidates.begin(), candidates.end(), std::uint32_t(seg.first)) - candidates.begin());
+        seg.outPolygons = seg.first - seg.kFirst + loopsBefore[seg.kFirst];
+        seg.inIndex = mesh.offsets[seg.first];
+        seg.outIndices = seg.inIndex - candidateIndicesBefore[seg.kFirst] + loopIndicesBefore[seg.kFirst];
+    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, segmentCount, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t s = r.begin(); s < r.end(); ++s) {
+            Segment& seg = segments[s];
+            const std::size_t end = s + 1 < segmentCount ? segments[s + 1].first : polygons;
+            // Offsets at or below `first` and indices below inIndex may not have been read yet.
+            const std::size_t offsetsFrom = offsetsInPlace ? seg.first + 1 : 0, indicesFrom = seg.inIndex;
+            std::size_t f = seg.outPolygons, i = seg.outIndices; // output: polygons and indices written
+            std::uint32_t runStart = seg.inIndex;                // input: the first index of the polygon read next
+            auto putOffset = [&](std::size_t at, std::uint32_t value) {
+                if (at < offsetsFrom) seg.heldOffsets.push_back(value);
+                else offsets[at] = value;
+            };
+            auto copyRun = [&](std::size_t f0, std::size_t f1) { // input polygons [f0, f1)
+                if (f1 <= f0) return;
+                const std::uint32_t runEnd = mesh.offsets[f1]; // (read before offsets[f + 1] <= it is written)
+                const std::uint32_t shift = std::uint32_t(i) - runStart; // (mod 2^32: i <= runStart)
+                const std::size_t n = runEnd - runStart, held = i < indicesFrom ? std::min(n, indicesFrom - i) : 0;
+                for (std::size_t j = 0; j < held; ++j) seg.heldIndices.push_back(newId[indices[runStart + j]]);
+                for (std::size_t j = held; j < n; ++j) indices[i + j] = newId[indices[runStart + j]];
+                i += n;
+                runStart = runEnd;
+                for (std::size_t g = f0; g < f1; ++g) putOffset(++f, mesh.offsets[g + 1] + shift); // (f + 1 <= g + 1)
+            };
+            std::size_t next = seg.first;
+            for (std::size_t k = seg.kFirst; k < K && candidates[k] < end; ++k) {
+                copyRun(next, candidates[k]);
+                const std::uint32_t candidateEnd = mesh.offsets[std::size_t(candidates[k]) + 1]; // (before its loops' offsets are written)
+                for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l) {
+                    if (pillow[l]) continue;
+                    seg.fromCandidates.push_back(std::uint32_t(f));
+                    const std::uint32_t* p = loops.loop(l);
+                    for (std::uint32_t j = 0; j < loops.size(l); ++j, ++i) {
+                        if (i < indicesFrom) seg.heldIndices.push_back(newId[p[j]]);
+                        else indices[i] = newId[p[j]];
+                    }
+                    putOffset(++f, std::uint32_t(i));
+                }
+                runStart = candidateEnd;
+                next = std::size_t(candidates[k]) + 1;
+            }
+            copyRun(next, end);
+            seg.endPolygons = f, seg.endIndices = i;
+        }
     });
     fromCandidates.clear();
-    std::size_t f = 0, i = 0;        // output: polygons and indices written
-    std::uint32_t runStart = 0;      // input: the first index of the polygon read next
-    auto copyRun = [&](std::size_t f0, std::size_t f1) { // input polygons [f0, f1)
-        if (f1 <= f0) return;
-        const std::uint32_t end = mesh.offsets[f1]; // (read before offsets[f + 1] <= it is written)
-        const std::uint32_t shift = std::uint32_t(i) - runStart; // (mod 2^32: i <= runStart)
-        if (i != runStart) std::memmove(indices + i, indices + runStart, (end - runStart) * sizeof(std::uint32_t));
-        i += end - runStart;
-        runStart = end;
-        for (std::size_t g = f0; g < f1; ++g) offsets[++f] = mesh.offsets[g + 1] + shift; // (f + 1 <= g + 1)
-    };
-    std::size_t next = 0;
-    for (std::size_t k = 0; k < candidates.size(); ++k) {
-        copyRun(next, candidates[k]);
-        const std::uint32_t candidateEnd = mesh.offsets[std::size_t(candidates[k]) + 1]; // (before its loops' offsets are written)
-        for (std::uint32_t l = firstLoop[k]; l < firstLoop[k + 1]; ++l) {
-            if (pillow[l]) continue;
-            fromCandidates.push_back(std::uint32_t(f));
-            const std::uint32_t* p = loops.loop(l);
-            for (std::uint32_t j = 0; j < loops.size(l); ++j) indices[i++] = newId[p[j]];
-            offsets[++f] = std::uint32_t(i);
-        }
-        runStart = candidateEnd;
-        next = std::size_t(candidates[k]) + 1;
+    for (std::size_t s = 0; s < segmentCount; ++s) {
+        const Segment& seg = segments[s];
+        const bool last = s + 1 == segmentCount;
+        if (seg.endPolygons != (last ? keptPolygons : segments[s + 1].outPolygons) ||
+            seg.endIndices != (last ? keptIndices : segments[s + 1].outIndices))
+            throw std::logic_error("lattice surface: the weld's segments do not join");
+        std::copy(seg.heldOffsets.begin(), seg.heldOffsets.end(), offsets + seg.outPolygons + 1);
+        std::copy(seg.heldIndices.begin(), seg.heldIndices.end(), indices + seg.outIndices);
+        fromCandidates.insert(fromCandidates.end(), seg.fromCandidates.begin(), seg.fromCandidates.end());
     }
-    copyRun(next, polygons);
-    if (offsetsInPlace) mesh.offsets.resize(f + 1);
+    if (offsetsInPlace) mesh.offsets.resize(keptPolygons + 1);
     else mesh.offsets = std::move(grown);
-    mesh.indices.resize(i);
-    // Points move down in runs between dropped ones (a forward copy: each lands at or before
-    // where it was read).
-    for (std::size_t v = 0; v < points;) {
-        if (newId[v] == kNone) {
-            ++v;
-            continue;
+    mesh.indices.resize(keptIndices);
+    // Points move down, chunk by chunk in parallel as they were numbered (each lands at or before
+    // where it was read; those that land below their chunk are kept aside, as above).
+    std::vector<std::vector<Vec3f>> heldPoints(chunkCount(points));
+    forEachChunk(points, [&](std::size_t c, std::size_t b, std::size_t e) {
+        for (std::size_t v = b; v < e; ++v) {
+            const std::uint32_t to = newId[v];
+            if (to == kNone) continue;
+            if (to < b) heldPoints[c].push_back(mesh.points[v]);
+            else if (to != v) mesh.points[to] = mesh.points[v];
         }
-        std::size_t e = v + 1;
-        while (e < points && newId[e] != kNone) ++e;
-        if (newId[v] != v) std::copy(mesh.points.begin() + std::ptrdiff_t(v), mesh.points.begin() + std::ptrdiff_t(e), mesh.points.begin() + std::ptrdiff_t(newId[v]));
-        v = e;
-    }
+    });
+    for (std::size_t c = 0; c < heldPoints.size(); ++c)
+        std::copy(heldPoints[c].begin(), heldPoints[c].end(), mesh.points.begin() + std::ptrdiff_t(pointBase[c]));
     mesh.points.resize(pointBase.back());
     return newId;
 }
