@@ -416,9 +416,9 @@ std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::ve
 // The mesh's polygons with each candidate replaced by its loops (pillows left out), and the
 // points no polygon then uses dropped (the order of the rest kept); the new numbers of the
 // polygons that came from candidates (ascending) go to fromCandidates. Returns old -> new point
-// numbers (kNone for dropped points). Rewritten in place, front to back: a candidate's loops hold
-// no more vertices than it did, and points only move down, so nothing is written before it is
-// read; the polygon count can grow where a pinched polygon splits, and then the offsets alone go
+// numbers (kNone for dropped points). Rewritten in place, front to back within each of a few
+// segments (in parallel): a candidate's loops hold no more vertices than it did, and points only
+// move down, so nothing is written before it is read; the polygon count can grow where a pinched polygon splits, and then the offsets alone go
 // to a new array. (A rewrite into new arrays touched 6 MB of fresh memory on the armadillo, a
 // page fault per 4 KB: the weld's largest cost.) Polygons between candidates move as runs: they
 // are nearly all of them, and only their vertex numbers change. `onNode`: the vertices on nodes
