@@ -1234,12 +1234,24 @@ TEST_CASE("welding groups a node's vertices alike wherever its lattice coordinat
                     through.push_back(f);
                     break;
                 }
-        Mesh listed = m;
+        Mesh listed = m, grouped = m, wrong = m;
         CHECK(weldNodeVertices(listed, atNode, {}, {}, &through).weldedVertices == 4);
+        // The mesher sorts atNode by node once, for both: the same weld.
+        const NodeGroups groups = groupByNode(atNode);
+        CHECK(groups.representative == std::vector<std::uint32_t>{0, 10, 0, 3, 10, 0, 10});
+        CHECK(groups.listed == std::vector<std::uint32_t>{3, 3, 3, 1, 3, 3, 3});
+        CHECK(verticesToWeld(atNode, groups) == toWeld);
+        CHECK(weldNodeVertices(grouped, atNode, {}, {}, &through, &groups).weldedVertices == 4);
         CHECK(weldNodeVertices(m, atNode).weldedVertices == 4);
         CHECK(listed.points == m.points);
         CHECK(listed.offsets == m.offsets);
         CHECK(listed.indices == m.indices);
+        CHECK(grouped.points == m.points);
+        CHECK(grouped.offsets == m.offsets);
+        CHECK(grouped.indices == m.indices);
+        NodeGroups shortGroups = groups; // (not atNode's: refused before the mesh is touched)
+        shortGroups.listed.pop_back();
+        CHECK_THROWS_AS(weldNodeVertices(wrong, atNode, {}, {}, &through, &shortGroups), std::logic_error);
         CHECK(m.points.size() == 8);
         CHECK(m.polygonCount() == 6);
         requireClosed(m);

@@ -796,9 +796,11 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
     // whole mesh for them was a tenth of the weld), unless the fit below changes the polygons.
     std::vector<std::uint8_t> mayWeld; // per vertex
     std::vector<std::vector<std::uint32_t>> weldPolygons; // per leaf, ascending
+    NodeGroups groups; // (a sort of atNode by node: once, here and for the weld)
     if (!beforeWeld && !atNode.empty()) {
         mayWeld = prefaultedVector<std::uint8_t>(vtotal, 0);
-        for (const std::uint32_t v : verticesToWeld(atNode)) mayWeld[v] = 1;
+        groups = groupByNode(atNode);
+        for (const std::uint32_t v : verticesToWeld(atNode, groups)) mayWeld[v] = 1;
         weldPolygons.resize(leafCount);
     }
     Progress progress("surface polygons", leafCount, im.options.cancel);
@@ -882,7 +884,8 @@ Mesh LatticeSurface::mesh(const std::function<void(Mesh&, const std::vector<std:
         beforeWeld(mesh, toWeld);
         for (std::size_t v = before; v < mesh.points.size(); ++v) added.push_back(std::uint32_t(v));
     }
-    const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added, mayWeld.empty() ? nullptr : &polygonsToWeld);
+    const NodeWeldStats welding = weldNodeVertices(mesh, atNode, rounded, added, mayWeld.empty() ? nullptr : &polygonsToWeld,
+                                                   groups.representative.empty() ? nullptr : &groups);
     teardown.wait();
     im.stats.weldedVertices = welding.weldedVertices;
     im.stats.collapsedPolygons = welding.collapsedPolygons;

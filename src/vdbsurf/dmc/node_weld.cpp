@@ -696,20 +696,27 @@ NodeWeldStats weldSeveral(Mesh& mesh, const std::vector<std::pair<std::uint32_t,
 
 } // namespace
 
-std::vector<std::uint32_t> verticesToWeld(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+NodeGroups groupByNode(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+    NodeGroups groups;
+    if (!atNode.empty()) groups.representative = representatives(atNode, groups.listed);
+    return groups;
+}
+
+std::vector<std::uint32_t> verticesToWeld(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, const NodeGroups& groups) {
     std::vector<std::uint32_t> out;
-    if (atNode.empty()) return out;
-    std::vector<std::uint32_t> listed;
-    representatives(atNode, listed);
     for (std::size_t k = 0; k < atNode.size(); ++k)
-        if (listed[k] >= 2) out.push_back(atNode[k].first);
+        if (groups.listed[k] >= 2) out.push_back(atNode[k].first);
     std::sort(out.begin(), out.end());
     return out;
 }
 
+std::vector<std::uint32_t> verticesToWeld(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode) {
+    return verticesToWeld(atNode, groupByNode(atNode));
+}
+
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
                                const std::vector<std::uint8_t>& rounded, const std::vector<std::uint32_t>& alsoSuspect,
-                               const std::vector<std::uint32_t>* polygonsToWeld) {
+                               const std::vector<std::uint32_t>* polygonsToWeld, const NodeGroups* groups) {
     std::vector<std::uint32_t> suspects = alsoSuspect;
     for (const auto& [v, node] : atNode) suspects.push_back(v);
     if (atNode.empty()) {
@@ -717,8 +724,11 @@ NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint
         stats.separatedVertices = separateCoincidentPoints(mesh, std::move(suspects));
         return stats;
     }
-    std::vector<std::uint32_t> listed;
-    const std::vector<std::uint32_t> repOf = representatives(atNode, listed);
+    const NodeGroups found = groups ? NodeGroups() : groupByNode(atNode);
+    if (groups && (groups->representative.size() != atNode.size() || groups->listed.size() != atNode.size()))
+        throw std::logic_error("weldNodeVertices: the node groups are not atNode's");
+    const std::vector<std::uint32_t>& repOf = groups ? groups->representative : found.representative;
+    const std::vector<std::uint32_t>& listed = groups ? groups->listed : found.listed;
     // A node with one vertex has nothing to weld: left out, the attempts touch only the polygons
     // around nodes with several (where a box's faces lie on node planes, every crossing on a face
     // rounds to a node, one a node but for the edges and corners).

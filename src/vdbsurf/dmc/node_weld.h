@@ -31,6 +31,14 @@ struct NodeWeldStats {
     std::uint64_t separatedVertices = 0; // vertices left on one point, moved apart (mesh/separate_points.h)
 };
 
+// Which entries of atNode share a node: per entry, its node's representative (the first vertex
+// listed for the node) and how many entries the node has. (A sort of the entries by node: found
+// once, for verticesToWeld and the weld.)
+struct NodeGroups {
+    std::vector<std::uint32_t> representative, listed;
+};
+NodeGroups groupByNode(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode);
+
 // `atNode` lists (vertex, node) for every vertex on a node, in a fixed order: the first vertex
 // listed for a node represents it. `rounded` (empty, or one flag per entry of atNode) marks the
 // vertices put on their node because they rounded to it (the node is within rounding of the iso
@@ -43,11 +51,13 @@ struct NodeWeldStats {
 // a polygon (each of the mesher's vertices is the crossing of an edge that its owner cell's
 // polygon passes through): then only the points of those polygons are looked at for removal.
 // Else the mesh is scanned for them, and points no polygon used before are removed too.
+// `groups`, if given, is groupByNode(atNode), found before (the mesher needs it first).
 NodeWeldStats weldNodeVertices(Mesh& mesh, const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode,
                                const std::vector<std::uint8_t>& rounded = {}, const std::vector<std::uint32_t>& alsoSuspect = {},
-                               const std::vector<std::uint32_t>* polygonsToWeld = nullptr);
+                               const std::vector<std::uint32_t>* polygonsToWeld = nullptr, const NodeGroups* groups = nullptr);
 
 // The vertices of atNode that the weld may merge: those whose node has two or more, ascending.
+std::vector<std::uint32_t> verticesToWeld(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode, const NodeGroups& groups);
 std::vector<std::uint32_t> verticesToWeld(const std::vector<std::pair<std::uint32_t, Vec3i>>& atNode);
 
 } // namespace vdbsurf
