@@ -1,6 +1,7 @@
 #include "vdbsurf/dmc/node_weld.h"
 
 #include "vdbsurf/core/fixed_chunks.h"
+#include "vdbsurf/core/parallel_buckets.h"
 #include "vdbsurf/core/prefault.h"
 #include "vdbsurf/mesh/mesh_folds.h"
 #include "vdbsurf/mesh/separate_points.h"
@@ -178,31 +179,20 @@ struct Welding {
 bool markNonManifoldWelds(const Loops& loops, const Welding& weld, const std::vector<std::uint32_t>& slot, std::size_t slots,
                           const std::vector<std::uint32_t>& selfPolygons, bool oneEnd,
                           std::vector<std::uint8_t>& apart) {
-    // The corners at each welded vertex, grouped by counting: (next vertex, previous vertex),
-    // counted and filled in parallel (their order within a vertex does not matter: the ends
-    // are sorted below).
-    std::unique_ptr<std::atomic<std::uint32_t>[]> fill(new std::atomic<std::uint32_t>[slots]);
-    for (std::size_t s = 0; s < slots; ++s) fill[s].store(0, std::memory_order_relaxed);
-    forEachChunk(loops.indices.size(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i)
-            if (weld.isRep(loops.indices[i])) fill[slot[loops.indices[i]]].fetch_add(1, std::memory_order_relaxed);
-    });
-    std::vector<std::uint32_t> first(slots + 1, 0);
-    for (std::size_t s = 0; s < slots; ++s) {
-        first[s + 1] = first[s] + fill[s].load(std::memory_order_relaxed);
-        fill[s].store(first[s], std::memory_order_relaxed);
-    }
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> corners(first.back());
-    forEachChunk(loops.count(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t l = b; l < e; ++l) {
-            const std::uint32_t* p = loops.loop(l);
-            const std::uint32_t n = loops.size(l);
-            for (std::uint32_t i = 0; i < n; ++i)
-                if (weld.isRep(p[i]))
-                    corners[fill[slot[p[i]]].fetch_add(1, std::memory_order_relaxed)] = {p[i + 1 < n ? i + 1 : 0], p[i > 0 ? i - 1 : n - 1]};
-        }
-    });
-    fill.reset();
+    // The corners at each welded vertex: (next vertex, previous vertex), grouped in parallel
+    // (their order within a vertex does not matter: the ends are sorted below).
+    std::vector<std::uint32_t> first;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> corners;
+    fillBuckets(slots, [&](auto&& put) {
+        forEachChunk(loops.count(), [&](std::size_t, std::size_t b, std::size_t e) {
+            for (std::size_t l = b; l < e; ++l) {
+                const std::uint32_t* p = loops.loop(l);
+                const std::uint32_t n = loops.size(l);
+                for (std::uint32_t i = 0; i < n; ++i)
+                    if (weld.isRep(p[i])) put(slot[p[i]], [&] { return std::make_pair(p[i + 1 < n ? i + 1 : 0], p[i > 0 ? i - 1 : n - 1]); });
+            }
+        });
+    }, first, corners);
     std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> badEdges(chunkCount(slots)); // (slot of v, w)
     forEachChunk(slots, [&](std::size_t c, std::size_t b, std::size_t e) {
         std::vector<std::uint32_t> ends;

@@ -1,13 +1,12 @@
 #include "vdbsurf/mesh/vertex_fans.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/core/parallel_buckets.h"
 #include "vdbsurf/core/prefault.h"
 #include "vdbsurf/core/union_find.h"
 
 #include <tbb/blocked_range.h>
 #include <algorithm>
-#include <atomic>
-#include <memory>
 #include <tbb/parallel_for.h>
 
 namespace vdbsurf {
@@ -117,19 +116,13 @@ void forEachExtraFanCorner(const Mesh& mesh, std::vector<std::uint32_t> candidat
             }
         });
     };
-    std::unique_ptr<std::atomic<std::uint32_t>[]> fill(new std::atomic<std::uint32_t>[candidates.size()]);
-    for (std::size_t s = 0; s < candidates.size(); ++s) fill[s].store(0, std::memory_order_relaxed);
-    forEachCandidateCorner([&](std::uint32_t s, std::uint32_t, std::uint32_t, std::uint32_t) { fill[s].fetch_add(1, std::memory_order_relaxed); });
-    std::vector<std::uint32_t> first(candidates.size() + 1, 0);
-    for (std::size_t s = 0; s < candidates.size(); ++s) {
-        first[s + 1] = first[s] + fill[s].load(std::memory_order_relaxed);
-        fill[s].store(first[s], std::memory_order_relaxed);
-    }
-    std::vector<Corner> corners(first.back());
-    forEachCandidateCorner([&](std::uint32_t s, std::uint32_t b, std::uint32_t n, std::uint32_t k) {
-        corners[fill[s].fetch_add(1, std::memory_order_relaxed)] = {b + k, mesh.indices[b + (k + n - 1) % n], mesh.indices[b + (k + 1) % n]};
-    });
-    fill.reset();
+    std::vector<std::uint32_t> first;
+    std::vector<Corner> corners;
+    fillBuckets(candidates.size(), [&](auto&& put) {
+        forEachCandidateCorner([&](std::uint32_t s, std::uint32_t b, std::uint32_t n, std::uint32_t k) {
+            put(s, [&] { return Corner{b + k, mesh.indices[b + (k + n - 1) % n], mesh.indices[b + (k + 1) % n]}; });
+        });
+    }, first, corners);
     for (const std::uint32_t v : candidates) slot[v] = kNone; // (a caller's scratch left as it came)
     // Each corner's fan at its vertex (0: the fan of the vertex's first corner), per candidate
     // in parallel (each writes only its own corners), then reported in order.
