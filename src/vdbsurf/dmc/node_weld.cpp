@@ -12,9 +12,7 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cstring>
-#include <memory>
 #include <stdexcept>
 #include <tuple>
 
@@ -328,31 +326,29 @@ void forEachRunBetween(const Mesh& mesh, const std::vector<std::uint32_t>& candi
     });
 }
 
+// A per-point flag that several tasks may set at once (polygons of different chunks share
+// points): GCC's relaxed atomic store on the plain array, as each pass stores one value.
+void setFlag(std::vector<std::uint8_t>& flags, std::uint32_t v, std::uint8_t value) { __atomic_store_n(&flags[v], value, __ATOMIC_RELAXED); }
+
+// The points of every kept loop flagged 1, in parallel.
+void markKeptLoops(const Loops& loops, const std::vector<std::uint8_t>& pillow, std::vector<std::uint8_t>& flags) {
+    forEachChunk(loops.count(), [&](std::size_t, std::size_t b, std::size_t e) {
+        for (std::size_t l = b; l < e; ++l)
+            if (!pillow[l])
+                for (std::uint32_t i = 0; i < loops.size(l); ++i) setFlag(flags, loops.loop(l)[i], 1);
+    });
+}
+
 // Which points a polygon uses once the candidates are replaced by their kept loops (1), found
 // by marking the points of every polygon between candidates and of every kept loop.
 std::vector<std::uint8_t> pointsUsedAfter(const Mesh& mesh, const std::vector<std::uint32_t>& candidates, const Loops& loops,
                                           const std::vector<std::uint8_t>& pillow) {
-    const std::size_t points = mesh.points.size();
-    // (Atomic: two chunks may mark one point.)
-    std::unique_ptr<std::atomic<std::uint8_t>[]> used(new std::atomic<std::uint8_t>[points]);
-    forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t v = b; v < e; ++v) used[v].store(0, std::memory_order_relaxed);
-    });
-    auto use = [&](const std::uint32_t* p, std::size_t n) {
-        for (std::size_t i = 0; i < n; ++i) used[p[i]].store(1, std::memory_order_relaxed);
-    };
+    std::vector<std::uint8_t> used = prefaultedVector<std::uint8_t>(mesh.points.size(), 0);
     forEachRunBetween(mesh, candidates, [&](std::size_t, std::uint32_t first, std::uint32_t last) {
-        use(mesh.indices.data() + first, last - first);
+        for (std::uint32_t i = first; i < last; ++i) setFlag(used, mesh.indices[i], 1);
     });
-    forEachChunk(loops.count(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t l = b; l < e; ++l)
-            if (!pillow[l]) use(loops.loop(l), loops.size(l));
-    });
-    std::vector<std::uint8_t> out = prefaultedVector<std::uint8_t>(points, 0);
-    forEachChunk(points, [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t v = b; v < e; ++v) out[v] = used[v].load(std::memory_order_relaxed);
-    });
-    return out;
+    markKeptLoops(loops, pillow, used);
+    return used;
 }
 
 // pointsUsedAfter where every point lies on a polygon, from the candidates alone (the marking
@@ -366,26 +362,19 @@ std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::ve
     constexpr std::uint8_t kUnsure = 2;
     std::vector<std::uint8_t> used = prefaultedVector<std::uint8_t>(mesh.points.size(), 1);
     // Three passes in parallel (each a scattered read of the candidates: most of the time is
-    // waiting for memory). Polygons of different tasks share points: the flags are stored and
-    // read with GCC's relaxed atomics, and each pass writes one value, so the outcome is the
-    // serial one's. A point may enter `unsure` twice: harmless.
-    auto store = [&](std::uint32_t v, std::uint8_t value) { __atomic_store_n(&used[v], value, __ATOMIC_RELAXED); };
-    forEachChunk(candidates.size(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t k = b; k < e; ++k)
-            for (std::uint32_t i = mesh.offsets[candidates[k]]; i < mesh.offsets[candidates[k] + 1]; ++i) store(mesh.indices[i], 0);
-    });
-    forEachChunk(loops.count(), [&](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t l = b; l < e; ++l)
-            if (!pillow[l])
-                for (std::uint32_t i = 0; i < loops.size(l); ++i) store(loops.loop(l)[i], 1);
-    });
+    // waiting for memory), each storing one value (setFlag), so the outcome is the serial one's.
+    // A point may enter `unsure` twice: harmless.
+    auto forEachCandidatePoint = [&](auto&& body) { // body(chunk, point)
+        forEachChunk(candidates.size(), [&](std::size_t c, std::size_t b, std::size_t e) {
+            for (std::size_t k = b; k < e; ++k)
+                for (std::uint32_t i = mesh.offsets[candidates[k]]; i < mesh.offsets[candidates[k] + 1]; ++i) body(c, mesh.indices[i]);
+        });
+    };
+    forEachCandidatePoint([&](std::size_t, std::uint32_t v) { setFlag(used, v, 0); });
+    markKeptLoops(loops, pillow, used);
     std::vector<std::vector<std::uint32_t>> unsureIn(chunkCount(candidates.size()));
-    forEachChunk(candidates.size(), [&](std::size_t c, std::size_t b, std::size_t e) {
-        for (std::size_t k = b; k < e; ++k)
-            for (std::uint32_t i = mesh.offsets[candidates[k]]; i < mesh.offsets[candidates[k] + 1]; ++i) {
-                const std::uint32_t v = mesh.indices[i];
-                if (__atomic_load_n(&used[v], __ATOMIC_RELAXED) == 0 && onNode[v] == kNone) store(v, kUnsure), unsureIn[c].push_back(v);
-            }
+    forEachCandidatePoint([&](std::size_t c, std::uint32_t v) {
+        if (__atomic_load_n(&used[v], __ATOMIC_RELAXED) == 0 && onNode[v] == kNone) setFlag(used, v, kUnsure), unsureIn[c].push_back(v);
     });
     std::vector<std::uint32_t> unsure;
     for (const auto& u : unsureIn) unsure.insert(unsure.end(), u.begin(), u.end());
@@ -408,8 +397,8 @@ std::vector<std::uint8_t> pointsLeftByCandidates(const Mesh& mesh, const std::ve
 // polygons that came from candidates (ascending) go to fromCandidates. Returns old -> new point
 // numbers (kNone for dropped points). Rewritten in place, front to back within each of a few
 // segments (in parallel): a candidate's loops hold no more vertices than it did, and points only
-// move down, so nothing is written before it is read; the polygon count can grow where a pinched polygon splits, and then the offsets alone go
-// to a new array. (A rewrite into new arrays touched 6 MB of fresh memory on the armadillo, a
+// move down, so nothing is written before it is read; the polygon count can grow where a pinched
+// polygon splits, and then the offsets alone go to a new array. (A rewrite into new arrays touched 6 MB of fresh memory on the armadillo, a
 // page fault per 4 KB: the weld's largest cost.) Polygons between candidates move as runs: they
 // are nearly all of them, and only their vertex numbers change. `onNode`: the vertices on nodes
 // the weld may merge (not kNone), all of whose polygons are candidates; `everyPointUsed`: every
