@@ -3,6 +3,7 @@
 #include "support/formula_text.h"
 #include "support/test_support.h"
 
+#include "vdbsurf/core/threads.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/field/grid_field.h"
@@ -67,6 +68,43 @@ TEST_CASE("separateCoincidentPoints: two pyramids touching at their apexes part,
     // Nothing else moved.
     const Mesh before = twoPyramidsApexToApex(apex);
     for (std::size_t v : {1, 2, 3, 4, 6, 7, 8, 9}) CHECK(m.points[v] == before.points[v]);
+}
+
+TEST_CASE("separateCoincidentPoints: a large mesh's pairs all part, the same at any thread count") {
+    // 3,000 pyramid pairs: 96,000 indices, more than one of the chunks the polygons are read in.
+    Mesh m;
+    std::vector<std::uint32_t> suspects;
+    for (int i = 0; i < 3000; ++i) {
+        const Mesh pair = twoPyramidsApexToApex(Vec3f(float(3 * (i % 60)), float(3 * (i / 60)), 2.0f));
+        const std::uint32_t base = std::uint32_t(m.points.size());
+        m.points.insert(m.points.end(), pair.points.begin(), pair.points.end());
+        for (std::size_t f = 0; f < pair.polygonCount(); ++f) {
+            std::vector<std::uint32_t> poly(pair.polygon(f), pair.polygon(f) + pair.polygonSize(f));
+            for (std::uint32_t& v : poly) v += base;
+            m.addPolygon(poly.data(), poly.size());
+        }
+        suspects.push_back(base + 5); // (in no order: later apexes first)
+        suspects.insert(suspects.begin(), base);
+    }
+    REQUIRE(m.indices.size() > 65536);
+    std::vector<Mesh> results;
+    for (int threads : {1, 2}) {
+        ThreadLimit limit(threads);
+        Mesh copy = m;
+        CHECK(separateCoincidentPoints(copy, suspects) == 6000);
+        results.push_back(std::move(copy));
+    }
+    CHECK(results[0].points == results[1].points);
+    CHECK(countCoincidentPoints(results[1]) == 0);
+    int misplaced = 0; // apexes not moved straight into their own pyramid, as a pair alone's are
+    for (int i = 0; i < 3000; ++i) {
+        const Vec3f below = results[1].points[std::size_t(10 * i)], above = results[1].points[std::size_t(10 * i + 5)];
+        const float x = float(3 * (i % 60)), y = float(3 * (i / 60));
+        misplaced += !(below.x == Approx(x).margin(1e-5) && below.y == Approx(y).margin(1e-5) &&
+                       below.z == Approx(2.0 - kSeparationShare).epsilon(1e-6) && above.x == Approx(x).margin(1e-5) &&
+                       above.y == Approx(y).margin(1e-5) && above.z == Approx(2.0 + kSeparationShare).epsilon(1e-6));
+    }
+    CHECK(misplaced == 0);
 }
 
 TEST_CASE("separateCoincidentPoints: only listed vertices move, and never onto each other") {
