@@ -364,9 +364,10 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                 clear = std::max(kOnNode, largest / frame.h * 0x1p-21) + 1e-6;
             }
             auto nodePos = [&](const Vec3i& local) {
-                const Vec3d p = frame.nodeWorld(Vec3i(w.origin.x() + local.x, w.origin.y() + local.y, w.origin.z() + local.z));
+                Vec3d p = frame.nodeWorld(Vec3i(w.origin.x() + local.x, w.origin.y() + local.y, w.origin.z() + local.z));
                 const std::size_t i = std::size_t(leafNodeIndex(local.x, local.y, local.z));
-                return moved[i] ? p + Vec3d(offsets[i]) : p;
+                if (moved[i]) p += Vec3d(offsets[i]);
+                return p;
             };
 
             // Each node's side once (a node is a corner of up to eight cells); without a branch a
@@ -406,9 +407,10 @@ void LatticeSurface::Impl::firstPass(const std::vector<std::size_t>* only) {
                         if (edgeOwner(cell.offsetBy(eo.x, eo.y, eo.z), axis, range) != cell) continue;
                     }
                     owned |= std::uint16_t(1u << e);
+                    // (Built from scalars, not by indexing a copy: that left them in memory,
+                    // written in parts and read whole, a store-forwarding stall per edge.)
                     const Vec3i la(x + eo.x, y + eo.y, z + eo.z);
-                    Vec3i lb = la;
-                    lb[std::size_t(axis)] += 1;
+                    const Vec3i lb(la.x + (axis == 0), la.y + (axis == 1), la.z + (axis == 2));
                     const std::size_t ia = std::size_t(leafNodeIndex(la.x, la.y, la.z));
                     const std::size_t ib = std::size_t(leafNodeIndex(lb.x, lb.y, lb.z));
                     const double va = vals[ia], vb = vals[ib];
