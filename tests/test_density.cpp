@@ -338,6 +338,30 @@ TEST_CASE("a primitive's bounds from one distance contain its density over the b
                 CHECK(d >= lo);
                 CHECK(d <= hi);
             }
+            // The same for blocks of n³ such points spaced by their cubes' width around c (n = 4:
+            // the rasterizer's blocks, the vectorised path; n = 3: the general one), all in the
+            // ball (the farthest cube's corner is 5.33 widths from c): each point's bounds hold
+            // over its cubes.
+            Neighbourhood inBlock;
+            inBlock.halfWidth = radius / 6 * t(rng);
+            inBlock.shift = i % 2 ? inBlock.halfWidth : 0.0;
+            for (int n : {3, 4}) {
+                const double step = inBlock.halfWidth;
+                const Vec3d first = c - Vec3d(1, 1, 1) * (step * (n - 1) / 2);
+                std::vector<double> blo(std::size_t(n * n * n)), bhi(blo.size());
+                pp.densityBoundsNearBlock(a, first, step, n, inBlock, blo.data(), bhi.data());
+                int outside = 0;
+                for (int b = 0; b < n * n * n; ++b) {
+                    const Vec3d q = first + Vec3d(b / (n * n), (b / n) % n, b % n) * step; // (k fastest)
+                    for (int k = 0; k < 6; ++k) {
+                        Vec3d p = q + Vec3d(sym(rng), sym(rng), sym(rng)) * inBlock.halfWidth;
+                        p[k % 3] += inBlock.shift * double(k % 3 - 1);
+                        const double d = pp.density(p);
+                        outside += d < blo[std::size_t(b)] || d > bhi[std::size_t(b)];
+                    }
+                }
+                CHECK(outside == 0);
+            }
             if (a.hasNormal && a.lo < a.hi) {
                 ++withNormal;
                 ballWidth += a.hi - a.lo;

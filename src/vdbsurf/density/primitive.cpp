@@ -382,6 +382,41 @@ void PreparedPrimitive::densityBoundsNear(const DensityAnchor& a, const Vec3d& v
     densityBoundsNearBlock(a, v, 0, 1, around, &lo, &hi);
 }
 
+namespace {
+
+// densityBoundsNearBlock's loop over the n³ points (N = n where it is known at compile time: the
+// 4³ blocks the rasterizer asks for, whose rows along z of 4 the compiler then turns into vector
+// operations — every lane the same IEEE operations as the scalar loop, so the same bits). Its
+// inputs are copied in, so that the outputs cannot alias them.
+struct NearBlockTerms {
+    double nx, ny, nz, cx, cy, cz, fx, fy, fz, step, spread, corner, slack, invFalloff, loCap, hiCap, weight;
+};
+
+template <int N>
+void boundsNearBlock(const NearBlockTerms t, int runtimeN, double* __restrict lo, double* __restrict hi) {
+    const int n = N > 0 ? N : runtimeN;
+    int index = 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j, index += n) {
+            // Along a row only z changes: the x and y parts of the plane's distance and of |r|² are taken once.
+            const double rx = t.fx + i * t.step - t.cx, ry = t.fy + j * t.step - t.cy;
+            const double planeXY = t.nx * rx + t.ny * ry, lengthXY = rx * rx + ry * ry;
+            for (int k = 0; k < n; ++k) {
+                const double rz = t.fz + k * t.step - t.cz;
+                const double len = std::sqrt(lengthXY + rz * rz);
+                const double dmin = planeXY + t.nz * rz - t.spread - t.slack;
+                const double dmax = len + t.corner + t.slack;
+                // The falloff without branches (the same values as falloffValue: u is clamped to [0, 1]).
+                const double uMax = std::min(std::max(dmax * t.invFalloff, 0.0), 1.0);
+                const double uMin = std::min(std::max(dmin * t.invFalloff, 0.0), 1.0);
+                lo[index + k] = std::max(t.loCap, t.weight * (1.0 - uMax * uMax * (3.0 - 2.0 * uMax)));
+                hi[index + k] = std::min(t.hiCap, t.weight * (1.0 - uMin * uMin * (3.0 - 2.0 * uMin)));
+            }
+        }
+}
+
+} // namespace
+
 void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec3d& first, double step, int n,
                                                const Neighbourhood& around, double* lo, double* hi) const {
     // The neighbourhoods lie in the anchor's ball (the caller's promise), so the ball's bounds hold too.
@@ -393,38 +428,24 @@ void PreparedPrimitive::densityBoundsNearBlock(const DensityAnchor& a, const Vec
     }
     const Vec3d& nrm = a.normal;
     const double e = around.halfWidth, s = around.shift;
+    NearBlockTerms t;
+    t.nx = nrm.x, t.ny = nrm.y, t.nz = nrm.z;
+    t.cx = a.closest.x, t.cy = a.closest.y, t.cz = a.closest.z;
+    t.fx = first.x, t.fy = first.y, t.fz = first.z, t.step = step;
     // Over the neighbourhood, the plane's distance n·(p − x) falls at most this far below its value
     // at the centre, and |p − x| rises at most `corner` (the farthest point: a cube's corner, shifted).
-    const double spread = e * (std::fabs(nrm.x) + std::fabs(nrm.y) + std::fabs(nrm.z)) +
-                          s * std::max({std::fabs(nrm.x), std::fabs(nrm.y), std::fabs(nrm.z)});
-    const double corner = std::sqrt(3.0 * e * e + 2.0 * e * s + s * s);
-    const double invFalloff = 1.0 / mP.falloff;
-    // The falloff without branches (the same values as falloffValue: t is clamped to [0, 1]).
-    auto falloff = [](double t) {
-        t = std::min(std::max(t, 0.0), 1.0);
-        return 1.0 - t * t * (3.0 - 2.0 * t);
-    };
+    t.spread = e * (std::fabs(nrm.x) + std::fabs(nrm.y) + std::fabs(nrm.z)) +
+               s * std::max({std::fabs(nrm.x), std::fabs(nrm.y), std::fabs(nrm.z)});
+    t.corner = std::sqrt(3.0 * e * e + 2.0 * e * s + s * s);
+    t.invFalloff = 1.0 / mP.falloff;
     // Rounding in the closest point, the normal and the sums below is ~1e-15 of the lengths
     // involved; one slack for the whole block, from its farthest point.
     const double reach = std::sqrt(3.0) * (n - 1) * step;
-    const double slack = 1e-9 * (length(first - a.closest) + reach + mMaxRadius) +
-                         1e-14 * (std::fabs(first.x) + std::fabs(first.y) + std::fabs(first.z) + 3 * (n - 1) * step);
-    const double loCap = a.lo, hiCap = a.hi, weight = mP.weight;
-    int index = 0;
-    for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-            // Along a row only z changes: the x and y parts of the plane's distance and of |r|² are taken once.
-            const double rx = first.x + i * step - a.closest.x, ry = first.y + j * step - a.closest.y;
-            const double planeXY = nrm.x * rx + nrm.y * ry, lengthXY = rx * rx + ry * ry;
-            for (int k = 0; k < n; ++k, ++index) {
-                const double rz = first.z + k * step - a.closest.z;
-                const double len = std::sqrt(lengthXY + rz * rz);
-                const double dmin = planeXY + nrm.z * rz - spread - slack;
-                const double dmax = len + corner + slack;
-                lo[index] = std::max(loCap, weight * falloff(dmax * invFalloff));
-                hi[index] = std::min(hiCap, weight * falloff(dmin * invFalloff));
-            }
-        }
+    t.slack = 1e-9 * (length(first - a.closest) + reach + mMaxRadius) +
+              1e-14 * (std::fabs(first.x) + std::fabs(first.y) + std::fabs(first.z) + 3 * (n - 1) * step);
+    t.loCap = a.lo, t.hiCap = a.hi, t.weight = mP.weight;
+    if (n == 4) boundsNearBlock<4>(t, n, lo, hi); // (the rasterizer's blocks, DensityScene::kNearBlock)
+    else boundsNearBlock<0>(t, n, lo, hi);
 }
 
 } // namespace vdbsurf
