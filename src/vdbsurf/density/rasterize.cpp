@@ -290,6 +290,14 @@ struct DensityRaster::Impl {
             // without a root (densityBoundsNear). Only voxels whose neighbourhood may straddle 0.5
             // are evaluated; every other one is read for its side alone, 1 or background. The band
             // evaluated is a few voxels thick.
+            // Inside voxels go straight into the leaf's buffer and mask, as evaluate() stores (setValueOn
+            // asked the buffer to load itself at each of them).
+            float* const leafValues = leaf->buffer().data();
+            auto& leafActive = leaf->getValueMask();
+            auto setFull = [&](openvdb::Index n) {
+                leafValues[n] = 1.0f;
+                leafActive.setOn(n);
+            };
             const Neighbourhood meshReads{h(), h()}; // the voxel's 3³ block and its axis neighbours'
             const double halo = (0.5 * (kBlock - 1) + kHalo) * h(); // the block's voxels ± kHalo: a cube around its centre
             const double radius = std::sqrt(3.0) * halo;             // and the ball around that cube
@@ -325,7 +333,7 @@ struct DensityRaster::Impl {
                         if (f == Fill::Full) {
                             for (int a = 0; a < kBlock; ++a)
                                 for (int c = 0; c < kBlock; ++c)
-                                    for (int d = 0; d < kBlock; ++d) leaf->setValueOn(b.offsetBy(a, c, d), 1.0f);
+                                    for (int d = 0; d < kBlock; ++d) setFull(LeafT::coordToOffset(b.offsetBy(a, c, d)));
                             any = true;
                             continue;
                         }
@@ -355,7 +363,7 @@ struct DensityRaster::Impl {
                                     const Fill g = decide(near[v]);
                                     if (g == Fill::Exact) setExact(LeafT::coordToOffset(ijk), ijk);
                                     else if (g == Fill::Full) {
-                                        leaf->setValueOn(ijk, 1.0f);
+                                        setFull(LeafT::coordToOffset(ijk));
                                         any = true;
                                     }
                                 }
