@@ -16,6 +16,85 @@ double falloffSlope(double t) {
 
 namespace {
 
+// Newton's steps for ellipsoidDistances, N lanes in lockstep until every lane has stopped: a lane
+// stops where F or its slope has the wrong sign or the step does not climb (t kept), and after a
+// step below 1e-9 of the scale (t taken) — convergence is quadratic, so that step leaves ~1e-18
+// of the scale. Lanes go in pairs through GCC's vector extension (a pair's divisions are one
+// instruction: the steps are chains of divisions), each lane's update selected rather than
+// skipped; every lane does the scalar step's IEEE operations in its order, so the bits are a
+// point's alone whatever N is. A lane that stopped computes on without effect.
+using Pair = double __attribute__((vector_size(16)));
+using PairMask = long long __attribute__((vector_size(16)));
+
+struct StepTerms {
+    double f, slope;
+};
+
+inline StepTerms stepTerms(const Vec3d& r2, const Vec3d& ry, double t) {
+    double s = 0, ds = 0;
+    for (int i = 0; i < 3; ++i) {
+        const double inv = 1.0 / (t + r2[i]);
+        const double q = ry[i] * inv;
+        s += q * q;
+        ds -= 2.0 * q * q * inv;
+    }
+    return {s - 1.0, ds};
+}
+
+template <int N> void newtonSteps(const Vec3d& r2, const Vec3d* ry, const bool* live, double* t) {
+    if constexpr (N % 2 == 0) {
+        constexpr int P = N / 2;
+        const Pair one = {1.0, 1.0}, two = {2.0, 2.0}, zero = {0.0, 0.0}, tolerance = {1e-9, 1e-9};
+        const Pair R[3] = {{r2[0], r2[0]}, {r2[1], r2[1]}, {r2[2], r2[2]}};
+        Pair a[P][3], tp[P];
+        PairMask on[P];
+        for (int k = 0; k < P; ++k) {
+            for (int i = 0; i < 3; ++i) a[k][i] = Pair{ry[2 * k][i], ry[2 * k + 1][i]};
+            tp[k] = Pair{t[2 * k], t[2 * k + 1]};
+            on[k] = PairMask{live[2 * k] ? -1LL : 0LL, live[2 * k + 1] ? -1LL : 0LL};
+        }
+        for (int step = 0; step < 100; ++step) {
+            PairMask any = {0, 0};
+            for (int k = 0; k < P; ++k) {
+                const Pair t0 = tp[k];
+                Pair s = zero, ds = zero;
+                for (int i = 0; i < 3; ++i) {
+                    const Pair inv = one / (t0 + R[i]);
+                    const Pair q = a[k][i] * inv;
+                    s += q * q;
+                    ds -= two * q * q * inv;
+                }
+                const Pair f = s - one;
+                const Pair next = t0 - f / ds;
+                const PairMask climbs = on[k] & (f > zero) & (ds < zero) & (next > t0);
+                const PairMask done = (next - t0) <= tolerance * (t0 + R[0] + R[1] + R[2]);
+                tp[k] = climbs ? next : t0;
+                on[k] = climbs & ~done;
+                any |= on[k];
+            }
+            if (!(any[0] | any[1])) break;
+        }
+        for (int k = 0; k < P; ++k) t[2 * k] = tp[k][0], t[2 * k + 1] = tp[k][1];
+    } else {
+        bool on[N];
+        for (int n = 0; n < N; ++n) on[n] = live[n];
+        for (int step = 0; step < 100; ++step) {
+            bool any = false;
+            for (int n = 0; n < N; ++n) {
+                const double t0 = t[n];
+                const StepTerms st = stepTerms(r2, ry[n], t0);
+                const double next = t0 - st.f / st.slope;
+                const bool climbs = on[n] && st.f > 0 && st.slope < 0 && next > t0;
+                const bool done = next - t0 <= 1e-9 * (t0 + r2[0] + r2[1] + r2[2]);
+                t[n] = climbs ? next : t0;
+                on[n] = climbs && !done;
+                any = any || on[n];
+            }
+            if (!any) break;
+        }
+    }
+}
+
 // Distances from N points outside-or-in to an axis-aligned ellipsoid (radii r, not all equal)
 // and their closest points. The closest point is x_i = r_i² y_i / (t + r_i²) (y = |p|, first
 // octant; x keeps p's signs) where F(t) = Σ (r_i y_i / (t + r_i²))² − 1 = 0, t ≥ 0 outside. F is
@@ -30,48 +109,14 @@ template <int N> void ellipsoidDistances(const Vec3d& r, const Vec3d* p, double*
     Vec3d y[N], ry[N];
     double t[N];
     bool outside[N], live[N];
-    auto F = [&](int n, double tn, double& slope) {
-        double s = 0, ds = 0;
-        for (int i = 0; i < 3; ++i) {
-            const double inv = 1.0 / (tn + r2[i]);
-            const double q = ry[n][i] * inv;
-            s += q * q;
-            ds -= 2.0 * q * q * inv;
-        }
-        slope = ds;
-        return s - 1.0;
-    };
     for (int n = 0; n < N; ++n) {
         y[n] = Vec3d(std::fabs(p[n].x), std::fabs(p[n].y), std::fabs(p[n].z));
         ry[n] = Vec3d(r.x * y[n].x, r.y * y[n].y, r.z * y[n].z);
-        double slope;
-        outside[n] = live[n] = F(n, 0.0, slope) > 0; // else on or inside the surface
+        outside[n] = live[n] = stepTerms(r2, ry[n], 0.0).f > 0; // else on or inside the surface
         t[n] = 0;
         for (int i = 0; i < 3; ++i) t[n] = std::max(t[n], ry[n][i] - r2[i]);
     }
-    for (int step = 0; step < 100; ++step) {
-        double f[N], slope[N];
-        for (int n = 0; n < N; ++n) f[n] = F(n, t[n], slope[n]);
-        bool any = false;
-        for (int n = 0; n < N; ++n) {
-            if (!live[n]) continue;
-            if (!(f[n] > 0) || !(slope[n] < 0)) {
-                live[n] = false;
-                continue;
-            }
-            const double next = t[n] - f[n] / slope[n];
-            if (!(next > t[n])) {
-                live[n] = false;
-                continue;
-            }
-            // Convergence is quadratic: after a step below 1e-9 of the scale, the error left is
-            // ~1e-18 of it, so that step is the last (one fewer evaluation than waiting for 1e-15).
-            if (next - t[n] <= 1e-9 * (t[n] + r2[0] + r2[1] + r2[2])) live[n] = false;
-            t[n] = next;
-            any = any || live[n];
-        }
-        if (!any) break;
-    }
+    newtonSteps<N>(r2, ry, live, t);
     for (int n = 0; n < N; ++n) {
         if (!outside[n]) {
             closest[n] = p[n];
