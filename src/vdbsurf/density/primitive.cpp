@@ -109,10 +109,17 @@ template <int N> void ellipsoidDistances(const Vec3d& r, const Vec3d* p, double*
     Vec3d y[N], ry[N];
     double t[N];
     bool outside[N], live[N];
+    // F at t = 0 (the side): its reciprocals 1 / (0 + r_i²) are the same for every point.
+    const Vec3d atZero(1.0 / (0.0 + r2[0]), 1.0 / (0.0 + r2[1]), 1.0 / (0.0 + r2[2]));
     for (int n = 0; n < N; ++n) {
         y[n] = Vec3d(std::fabs(p[n].x), std::fabs(p[n].y), std::fabs(p[n].z));
         ry[n] = Vec3d(r.x * y[n].x, r.y * y[n].y, r.z * y[n].z);
-        outside[n] = live[n] = stepTerms(r2, ry[n], 0.0).f > 0; // else on or inside the surface
+        double s = 0;
+        for (int i = 0; i < 3; ++i) {
+            const double q = ry[n][i] * atZero[i];
+            s += q * q;
+        }
+        outside[n] = live[n] = s - 1.0 > 0; // else on or inside the surface
         t[n] = 0;
         for (int i = 0; i < 3; ++i) t[n] = std::max(t[n], ry[n][i] - r2[i]);
     }
