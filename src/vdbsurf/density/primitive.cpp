@@ -302,8 +302,24 @@ void PreparedPrimitive::densities(const Vec3d* points, std::size_t count, double
         }
         return;
     }
-    if (mP.core != CoreShape::Ellipsoid) {
-        for (std::size_t k = 0; k < count; ++k) out[k] = density(points[k]);
+    if (mP.core == CoreShape::Box) {
+        // The same for boxes: density()'s operations in its order (toLocal, the excess over the
+        // half extents, its length, the falloff), the falloff's ends by the clamp.
+        const double weight = mP.weight, falloff = mP.falloff;
+        const Vec3d c = mP.center, half = mP.size, lo = mInfluence.min, hi = mInfluence.max;
+        const double r00 = mR[0][0], r01 = mR[0][1], r02 = mR[0][2], r10 = mR[1][0], r11 = mR[1][1], r12 = mR[1][2], r20 = mR[2][0],
+                     r21 = mR[2][1], r22 = mR[2][2];
+        for (std::size_t k = 0; k < count; ++k) {
+            const Vec3d& p = points[k];
+            const double dx = p.x - c.x, dy = p.y - c.y, dz = p.z - c.z;
+            const double qx = r00 * dx + r10 * dy + r20 * dz, qy = r01 * dx + r11 * dy + r21 * dz, qz = r02 * dx + r12 * dy + r22 * dz;
+            const double ex = std::max(std::fabs(qx) - half.x, 0.0), ey = std::max(std::fabs(qy) - half.y, 0.0),
+                         ez = std::max(std::fabs(qz) - half.z, 0.0);
+            const double t = std::min(std::sqrt(ex * ex + ey * ey + ez * ez) / falloff, 1.0);
+            const double s = 1.0 - t * t * (3.0 - 2.0 * t);
+            const bool inside = (p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x <= hi.x) & (p.y <= hi.y) & (p.z <= hi.z);
+            out[k] = inside ? weight * s : 0.0;
+        }
         return;
     }
     // density() point by point but for the roots, which wait in fours (ellipsoidDistances<4>).
