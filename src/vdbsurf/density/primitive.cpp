@@ -7,7 +7,20 @@ namespace vdbsurf {
 
 namespace {
 constexpr double kDegree = 3.14159265358979323846 / 180.0;
+
+// falloffValue without branches, for loops over many points that the compiler runs two at a
+// time (with the file's -fno-trapping-math): t clamped to [0, 1] gives its 1 and 0 at the ends
+// exactly, and the cubic between is its own, so the values keep their bits (for any t but a NaN).
+inline double falloffClamped(double t) {
+    t = std::min(std::max(t, 0.0), 1.0);
+    return 1.0 - t * t * (3.0 - 2.0 * t);
 }
+
+// Box3::contains without branches, for the same loops.
+inline bool inBox(const Box3& b, const Vec3d& p) {
+    return (p.x >= b.min.x) & (p.y >= b.min.y) & (p.z >= b.min.z) & (p.x <= b.max.x) & (p.y <= b.max.y) & (p.z <= b.max.z);
+}
+} // namespace
 
 double falloffSlope(double t) {
     if (t <= 0 || t >= 1) return 0.0;
@@ -285,40 +298,27 @@ double PreparedPrimitive::densityOfOtherCores(const Vec3d& p) const {
 
 void PreparedPrimitive::densities(const Vec3d* points, std::size_t count, double* out) const {
     if (mSphere) {
-        // density() without branches, so that the compiler runs two points at a time (with the
-        // file's -fno-trapping-math): t clamped to [0, 1] gives falloffValue's 1 and 0 at the
-        // ends exactly, and the other operations are density()'s, so the values keep their bits
-        // (for every point but a NaN, which no voxel is). An edit that moves a sphere corrects
-        // every voxel near it by two of these.
+        // density() without branches (falloffClamped, inBox), so that the compiler runs two points
+        // at a time; the other operations are density()'s, so the values keep their bits (for
+        // every point but a NaN, which no voxel is). An edit that moves a sphere corrects every
+        // voxel near it by two of these.
         const double radius = mP.size.x, falloff = mP.falloff, weight = mP.weight;
-        const Vec3d c = mP.center, lo = mInfluence.min, hi = mInfluence.max;
+        const Vec3d c = mP.center;
+        const Box3 influence = mInfluence;
         for (std::size_t k = 0; k < count; ++k) {
             const Vec3d& p = points[k];
             const double dx = p.x - c.x, dy = p.y - c.y, dz = p.z - c.z;
-            const double t = std::min(std::max(0.0, std::sqrt(dx * dx + dy * dy + dz * dz) - radius) / falloff, 1.0);
-            const double s = 1.0 - t * t * (3.0 - 2.0 * t);
-            const bool inside = (p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x <= hi.x) & (p.y <= hi.y) & (p.z <= hi.z);
-            out[k] = inside ? weight * s : 0.0;
+            const double s = falloffClamped(std::max(0.0, std::sqrt(dx * dx + dy * dy + dz * dz) - radius) / falloff);
+            out[k] = inBox(influence, p) ? weight * s : 0.0;
         }
         return;
     }
-    if (mP.core == CoreShape::Box) {
-        // The same for boxes: density()'s operations in its order (toLocal, the excess over the
-        // half extents, its length, the falloff), the falloff's ends by the clamp.
-        const double weight = mP.weight, falloff = mP.falloff;
-        const Vec3d c = mP.center, half = mP.size, lo = mInfluence.min, hi = mInfluence.max;
-        const double r00 = mR[0][0], r01 = mR[0][1], r02 = mR[0][2], r10 = mR[1][0], r11 = mR[1][1], r12 = mR[1][2], r20 = mR[2][0],
-                     r21 = mR[2][1], r22 = mR[2][2];
+    if (mP.core == CoreShape::Box) { // the same for boxes (coreDistance's operations: toLocal, boxExcess)
+        const double falloff = mP.falloff, weight = mP.weight;
+        const Box3 influence = mInfluence;
         for (std::size_t k = 0; k < count; ++k) {
-            const Vec3d& p = points[k];
-            const double dx = p.x - c.x, dy = p.y - c.y, dz = p.z - c.z;
-            const double qx = r00 * dx + r10 * dy + r20 * dz, qy = r01 * dx + r11 * dy + r21 * dz, qz = r02 * dx + r12 * dy + r22 * dz;
-            const double ex = std::max(std::fabs(qx) - half.x, 0.0), ey = std::max(std::fabs(qy) - half.y, 0.0),
-                         ez = std::max(std::fabs(qz) - half.z, 0.0);
-            const double t = std::min(std::sqrt(ex * ex + ey * ey + ez * ez) / falloff, 1.0);
-            const double s = 1.0 - t * t * (3.0 - 2.0 * t);
-            const bool inside = (p.x >= lo.x) & (p.y >= lo.y) & (p.z >= lo.z) & (p.x <= hi.x) & (p.y <= hi.y) & (p.z <= hi.z);
-            out[k] = inside ? weight * s : 0.0;
+            const double s = falloffClamped(length(boxExcess(toLocal(points[k]))) / falloff);
+            out[k] = inBox(influence, points[k]) ? weight * s : 0.0;
         }
         return;
     }
@@ -474,11 +474,8 @@ void boundsNearBlock(const NearBlockTerms t, int runtimeN, double* __restrict lo
                 const double len = std::sqrt(lengthXY + rz * rz);
                 const double dmin = planeXY + t.nz * rz - t.spread - t.slack;
                 const double dmax = len + t.corner + t.slack;
-                // The falloff without branches (the same values as falloffValue: u is clamped to [0, 1]).
-                const double uMax = std::min(std::max(dmax * t.invFalloff, 0.0), 1.0);
-                const double uMin = std::min(std::max(dmin * t.invFalloff, 0.0), 1.0);
-                lo[index + k] = std::max(t.loCap, t.weight * (1.0 - uMax * uMax * (3.0 - 2.0 * uMax)));
-                hi[index + k] = std::min(t.hiCap, t.weight * (1.0 - uMin * uMin * (3.0 - 2.0 * uMin)));
+                lo[index + k] = std::max(t.loCap, t.weight * falloffClamped(dmax * t.invFalloff));
+                hi[index + k] = std::min(t.hiCap, t.weight * falloffClamped(dmin * t.invFalloff));
             }
         }
 }
