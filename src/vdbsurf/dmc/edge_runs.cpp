@@ -87,10 +87,10 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
 
 bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, double margin, int budget) const {
     // Where a and b are joined the search heads almost straight for b: those it confirms (crack
-    // rims) take a few dozen samples; a search that has not arrived within 20 samples per step
-    // of the search (a cell is 2k samples across) is taken to have found no path (noisy fog at 3
-    // voxels a cell: a tenth of the evaluations of a search without a budget, the same cracks
-    // kept apart).
+    // rims) take a few dozen samples; a search that has not arrived within `budget` samples per
+    // step of the search (a cell is 2k samples across) is taken to have found no path (noisy fog
+    // at 3 voxels a cell, with 20: a tenth of the evaluations of a search without a budget, the
+    // same cracks kept apart).
     const std::uint64_t kBudget = std::uint64_t(budget) * std::uint64_t(mSteps);
     const std::uint64_t before = evaluated;
     const double step = mFrame.h / (2.0 * mSteps);

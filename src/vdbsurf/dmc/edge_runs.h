@@ -92,13 +92,13 @@ public:
     // them (a crack between them crosses every such path).
     bool bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const;
 
-    // Do a and b lie in one piece of side `inside` within the box around both grown by half a
-    // cell? A search over samples at h/(2k) (26-connected: a crack at least h/k wide holds a
+    // Do a and b lie in one piece of side `inside` within the box around both grown by `margin`
+    // cells? A search over samples at h/(2k) (26-connected: a crack at least h/k wide holds a
     // connected layer of them, and a sheet at least h/k wide leaves no diagonal gap between its
     // two sides), best first towards b, that gives up (no) after budget·k samples. Where a crack
     // reaches a surface within a cell of a node, its outside and the outside beyond that surface
-    // meet around the rim, which bent paths miss. `margin` (in cells) and `budget` (samples per
-    // step of the search) widen it for paths that turn a corner: a wire meeting another.
+    // meet around the rim, which bent paths miss (half a cell and 20 do there). A cell and more
+    // samples find the paths that turn a corner: a wire crossing another.
     bool joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, double margin = 0.5,
                       int budget = 20) const;
 
