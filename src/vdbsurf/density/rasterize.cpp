@@ -226,6 +226,14 @@ struct DensityRaster::Impl {
             }
         }
         auto leaf = std::make_unique<LeafT>(origin, 0.0f, false);
+        // Voxels go straight into the leaf's buffer and mask (setValueOn asks the buffer to load
+        // itself at every voxel, and the voxels here are many).
+        float* const leafValues = leaf->buffer().data();
+        auto& leafActive = leaf->getValueMask();
+        auto setVoxel = [&](openvdb::Index n, float v) {
+            leafValues[n] = v;
+            leafActive.setOn(n);
+        };
         // The sums an edit would need, only when they are kept (5 KB a leaf otherwise wasted). An
         // edit writes them over the leaf's old ones (which are prev, unless prev is the zero sums):
         // every old value is read before the new one goes in its place, and the parts whose layout
@@ -256,10 +264,6 @@ struct DensityRaster::Impl {
             for (std::uint32_t j : added) scene.addContributions(j, points.data() + corrected, correctedCount, false, sum.data() + corrected);
             r.voxels += fresh;
             r.updated += correctedCount;
-            // Straight into the leaf's buffer and mask (setValueOn asks the buffer to load itself
-            // at every voxel, and the voxels here are many).
-            float* values = leaf->buffer().data();
-            auto& active = leaf->getValueMask();
             auto store = [&](std::size_t k) {
                 const openvdb::Index n = which[k];
                 if (out) {
@@ -268,8 +272,7 @@ struct DensityRaster::Impl {
                 }
                 const float v = float(clampDensity(fromFixed(sum[k])));
                 if (v > 0) {
-                    values[n] = v;
-                    active.setOn(n);
+                    setVoxel(n, v);
                     any = true;
                 }
             };
@@ -290,14 +293,6 @@ struct DensityRaster::Impl {
             // without a root (densityBoundsNear). Only voxels whose neighbourhood may straddle 0.5
             // are evaluated; every other one is read for its side alone, 1 or background. The band
             // evaluated is a few voxels thick.
-            // Inside voxels go straight into the leaf's buffer and mask, as evaluate() stores (setValueOn
-            // asked the buffer to load itself at each of them).
-            float* const leafValues = leaf->buffer().data();
-            auto& leafActive = leaf->getValueMask();
-            auto setFull = [&](openvdb::Index n) {
-                leafValues[n] = 1.0f;
-                leafActive.setOn(n);
-            };
             const Neighbourhood meshReads{h(), h()}; // the voxel's 3³ block and its axis neighbours'
             const double halo = (0.5 * (kBlock - 1) + kHalo) * h(); // the block's voxels ± kHalo: a cube around its centre
             const double radius = std::sqrt(3.0) * halo;             // and the ball around that cube
@@ -333,7 +328,7 @@ struct DensityRaster::Impl {
                         if (f == Fill::Full) {
                             for (int a = 0; a < kBlock; ++a)
                                 for (int c = 0; c < kBlock; ++c)
-                                    for (int d = 0; d < kBlock; ++d) setFull(LeafT::coordToOffset(b.offsetBy(a, c, d)));
+                                    for (int d = 0; d < kBlock; ++d) setVoxel(LeafT::coordToOffset(b.offsetBy(a, c, d)), 1.0f);
                             any = true;
                             continue;
                         }
@@ -363,7 +358,7 @@ struct DensityRaster::Impl {
                                     const Fill g = decide(near[v]);
                                     if (g == Fill::Exact) setExact(LeafT::coordToOffset(ijk), ijk);
                                     else if (g == Fill::Full) {
-                                        setFull(LeafT::coordToOffset(ijk));
+                                        setVoxel(LeafT::coordToOffset(ijk), 1.0f);
                                         any = true;
                                     }
                                 }
