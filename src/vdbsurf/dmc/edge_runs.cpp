@@ -85,16 +85,16 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
     return false;
 }
 
-bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, double margin, int budget) const {
+bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, const JoinReach& reach) const {
     // Where a and b are joined the search heads almost straight for b: those it confirms (crack
-    // rims) take a few dozen samples; a search that has not arrived within `budget` samples per
-    // step of the search (a cell is 2k samples across) is taken to have found no path (noisy fog
-    // at 3 voxels a cell, with 20: a tenth of the evaluations of a search without a budget, the
-    // same cracks kept apart).
-    const std::uint64_t kBudget = std::uint64_t(budget) * std::uint64_t(mSteps);
+    // rims) take a few dozen samples; a search that has not arrived within the budget's samples
+    // per step of the search (a cell is 2k samples across) is taken to have found no path (noisy
+    // fog at 3 voxels a cell, with 20 outside: a tenth of the evaluations of a search without a
+    // budget, the same cracks kept apart).
+    const std::uint64_t kBudget = std::uint64_t(reach.budget) * std::uint64_t(mSteps);
     const std::uint64_t before = evaluated;
     const double step = mFrame.h / (2.0 * mSteps);
-    margin *= mFrame.h;
+    const double margin = reach.margin * mFrame.h;
     // Samples a + step·(i + lo) for i within size: a is one of them; the box holds both ends and margin.
     int lo[3], size[3];
     for (int i = 0; i < 3; ++i) {

@@ -532,10 +532,14 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     // their side), one of the nodes between searches its whole Ω and moves into the part.
     // Starts from the moved nodes and the corners of such cells, then repeats from the nodes
     // that moved, until nothing moves.
-    // How far from a node the lattice is asked whether it joins two nodes already; and the bent
-    // path's search budget per search step (EdgeRuns::joinedNearby): the paths round a crossing
-    // of random wires all took fewer (with 12 or 16, one in 120 was missed).
-    constexpr int kJoinReach = 4, kJoinWidth = 2 * kJoinReach + 1, kBentBudget = 24;
+    // How far from a node the lattice is asked whether it joins two nodes already; and how far
+    // a bent path is sought (EdgeRuns::joinedNearby): a cell, with fewer samples a step than a
+    // move's check takes (kJunctionReach), as every node moved into a thin part asks for each
+    // diagonal partner (noisy fog resampled to 2 voxels a cell: with 100, the thin search took
+    // 1.5 times as long). The paths round a crossing of random wires mostly took fewer (with 12
+    // or 16, one in 120 more was missed; with 100, 4 of 120 crossings in pieces instead of 8).
+    constexpr int kJoinReach = 4, kJoinWidth = 2 * kJoinReach + 1;
+    constexpr EdgeRuns::JoinReach kBentReach{1.0, 24};
     tbb::enumerable_thread_specific<std::uint64_t> bridgeSamples(0);
     std::uint64_t samplesAfter = 0;
     for (int round = 0; round < 16 && !frontier.empty(); ++round) {
@@ -668,12 +672,12 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     const int steps = int(std::ceil(length(qPos - pPos) / frame.h * (options.steps + 1)));
                     // Or, from an inside node the search moved into a thin part, along a path that
                     // bends (a wire crossing another: the segment leaves the one before it enters
-                    // the other), within a cell around both, where the lattice does not join them
-                    // already (a bridge would close a loop around what lies between: a handle the
-                    // part does not have). Not from outside nodes: the outside around a crack is
-                    // mostly wide, and the search spent its whole budget there (noisy fog
-                    // resampled to 2 voxels a cell: 690 searches, 5 paths).
-                    if (joined(qPos, steps) || (pMoved && pInside && edgeRuns.joinedNearby(pPos, qPos, true, evaluated, 1.0, kBentBudget) &&
+                    // the other), within a cell around both (kBentReach), where the lattice does
+                    // not join them already (a bridge would close a loop around what lies between:
+                    // a handle the part does not have). Not from outside nodes: the outside around
+                    // a crack is mostly wide, and the search spent its whole budget there (noisy
+                    // fog resampled to 2 voxels a cell: 690 searches, 5 paths).
+                    if (joined(qPos, steps) || (pMoved && pInside && edgeRuns.joinedNearby(pPos, qPos, true, evaluated, kBentReach) &&
                                                 !latticeJoins(q)))
                         bridge(between, (pPos + qPos) * 0.5, &qPos);
                 };
