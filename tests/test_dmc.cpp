@@ -369,7 +369,7 @@ TEST_CASE("thin rods crossing near a node stay joined where the straight segment
                             Vec3d(0.024401, -0.039717, 0.041076), 0.023004, 0.039562));
     // Random pairs at least 40 degrees apart, a fifth to half a cell across, crossing in the centre
     // cell: 22 of 24 whole (17 where the path round the crossing was sought within half a cell and
-    // 20 samples a step, EdgeRuns::joinReach; 11 with straight segments alone). Where a node is
+    // 20 samples a step, EdgeRuns::kRimReach; 11 with straight segments alone). Where a node is
     // needed by both rods at once, one rod still comes off: moving it into the one would join its
     // edge to a node of the other across the gap between them (a handle), and one node a cell
     // cannot stand for two parts.

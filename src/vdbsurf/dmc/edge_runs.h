@@ -99,9 +99,11 @@ public:
         int budget;
     };
     // Outside, half a cell and 20: where a crack reaches a surface within a cell of a node, its
-    // outside and the outside beyond that surface meet around the rim, which bent paths miss;
-    // the outside around a crack is mostly wide, and a larger search spends its whole budget
-    // there (noisy fog resampled to 2 voxels a cell) and joins no more crossing cracks.
+    // outside and the outside beyond that surface meet around the rim, which bent paths miss.
+    // The outside around a crack is mostly wide, and a larger search spends its whole budget
+    // there: with the inside's reach, the thin search on noisy fog resampled to 2 voxels a cell
+    // took 10-25 % longer, and though 7 more of 30 pairs of crossing cracks came out right, 2 of
+    // 80 random blob scenes got a handle or a piece that they do not have.
     static constexpr JoinReach kRimReach{0.5, 20};
     // Inside, a cell and 100: thin parts that cross (rods, plates) meet in a junction up to a cell
     // beyond nodes that stand in different parts, and the path round it turns away from b. With
