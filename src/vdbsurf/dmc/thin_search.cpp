@@ -538,7 +538,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     // diagonal partner (noisy fog resampled to 2 voxels a cell: with 100, the thin search took
     // 1.5 times as long). The paths round a crossing of random wires mostly took fewer (with 12
     // or 16, one in 120 more was missed; with 100, 4 of 120 crossings in pieces instead of 8).
-    constexpr int kJoinReach = 4, kJoinWidth = 2 * kJoinReach + 1;
+    constexpr int kLatticeJoinSteps = 4, kLatticeJoinWidth = 2 * kLatticeJoinSteps + 1;
     constexpr EdgeRuns::JoinReach kBentReach{1.0, 24};
     tbb::enumerable_thread_specific<std::uint64_t> bridgeSamples(0);
     std::uint64_t samplesAfter = 0;
@@ -586,18 +586,19 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     return true;
                 };
                 // Does marching cubes join the inside node p to q (an offset from p) through inside
-                // nodes, along edges, within kJoinReach steps of p? (The window's values are
+                // nodes, along edges, within kLatticeJoinSteps steps of p? (The window's values are
                 // sampled when first asked.)
                 std::vector<double> window;
                 auto latticeJoins = [&](const Vec3i& q) {
                     if (window.empty()) {
-                        window.resize(std::size_t(kJoinWidth) * kJoinWidth * kJoinWidth);
-                        field.sampleNodes(frame, Vec3i(p.x() - kJoinReach, p.y() - kJoinReach, p.z() - kJoinReach),
-                                          {kJoinWidth, kJoinWidth, kJoinWidth}, nullptr, window.data());
+                        window.resize(std::size_t(kLatticeJoinWidth) * kLatticeJoinWidth * kLatticeJoinWidth);
+                        field.sampleNodes(frame, Vec3i(p.x() - kLatticeJoinSteps, p.y() - kLatticeJoinSteps, p.z() - kLatticeJoinSteps),
+                                          {kLatticeJoinWidth, kLatticeJoinWidth, kLatticeJoinWidth}, nullptr, window.data());
                         evaluated += window.size();
                     }
                     auto at = [&](const Vec3i& o) {
-                        return std::size_t((o.x + kJoinReach) + kJoinWidth * ((o.y + kJoinReach) + kJoinWidth * (o.z + kJoinReach)));
+                        const Vec3i w = o + Vec3i(kLatticeJoinSteps, kLatticeJoinSteps, kLatticeJoinSteps);
+                        return std::size_t(w.x + kLatticeJoinWidth * (w.y + kLatticeJoinWidth * w.z));
                     };
                     std::vector<std::uint8_t> seen(window.size(), 0);
                     std::vector<Vec3i> queue{Vec3i(0, 0, 0)};
@@ -606,7 +607,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                         for (int k = 0; k < 6; ++k) {
                             Vec3i n = queue[head];
                             n[std::size_t(k / 2)] += k % 2 ? 1 : -1;
-                            if (std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)}) > kJoinReach || seen[at(n)]) continue;
+                            if (std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)}) > kLatticeJoinSteps || seen[at(n)]) continue;
                             seen[at(n)] = 1;
                             if (!nodes.inside(p.offsetBy(n.x, n.y, n.z), isInside(window[at(n)], iso, side))) continue;
                             if (n == q) return true;
