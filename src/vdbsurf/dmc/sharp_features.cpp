@@ -18,6 +18,7 @@
 #include <tbb/parallel_sort.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -131,6 +132,39 @@ struct Recorded {
 // A proposal's field checks: not yet made, passed, failed. Made at most once each, on demand by
 // any task; a pure function of the proposal, so a race writes the same value.
 enum : std::uint8_t { kUnchecked = 0, kPassed = 1, kFailed = 2 };
+
+// Into how many groups the nodes on side `side` fall among the 26 around a node, joined within
+// its 3^3 block (bit k of `insideAround`: node k of the block is inside; the centre, k = 13, is
+// left out) by `adjacency`: 6 across faces, 18 across face diagonals too, 26 across any corner.
+int groupsAround(std::uint32_t insideAround, bool side, int adjacency) {
+    // reach[a][k]: the nodes of the block joined to node k by adjacency 6, 18, 26 (a = 0, 1, 2).
+    static const auto reach = [] {
+        std::array<std::array<std::uint32_t, 27>, 3> r{};
+        for (int k = 0; k < 27; ++k)
+            for (int j = 0; j < 27; ++j) {
+                const int away = std::abs(k % 3 - j % 3) + std::abs((k / 3) % 3 - (j / 3) % 3) + std::abs(k / 9 - j / 9);
+                const bool near = std::abs(k % 3 - j % 3) <= 1 && std::abs((k / 3) % 3 - (j / 3) % 3) <= 1 && std::abs(k / 9 - j / 9) <= 1;
+                if (!near || away == 0) continue;
+                for (int a = 0; a < 3; ++a)
+                    if (away <= a + 1) r[std::size_t(a)][std::size_t(k)] |= 1u << j;
+            }
+        return r;
+    }();
+    const auto& joined = reach[std::size_t(adjacency == 6 ? 0 : adjacency == 18 ? 1 : 2)];
+    std::uint32_t left = (side ? insideAround : ~insideAround) & ((1u << 27) - 1) & ~(1u << 13);
+    int groups = 0;
+    while (left) {
+        std::uint32_t group = left & (~left + 1), grown = 0;
+        while (grown != group) {
+            const std::uint32_t fresh = group & ~grown;
+            grown = group;
+            for (std::uint32_t g = fresh; g; g &= g - 1) group |= joined[std::size_t(__builtin_ctz(g))] & left;
+        }
+        left &= ~group;
+        ++groups;
+    }
+    return groups;
+}
 
 Coord nearestNode(const LatticeFrame& frame, const Vec3d& p) {
     const Vec3d q = (p - frame.origin) / frame.h;
@@ -785,11 +819,11 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         }
         return true;
     };
-    // The field's side at each proposal's six neighbours does not depend on the order below:
-    // sampled first, in parallel (bit k: neighbour k of kNeighbours is inside). With `keepsFaces`,
-    // whether the proposal passes crossingsOnFeatureFaces too.
+    // The field's side at rest at the 27 nodes around each proposal's node does not depend on the
+    // order below: sampled first, in parallel (bit k: node k of the 3^3 block is inside). With
+    // `keepsFaces`, whether the proposal passes crossingsOnFeatureFaces too.
     auto sampleNeighbours = [&](const std::vector<Proposal>& proposals, std::vector<std::uint8_t>* keepsFaces) {
-        std::vector<std::uint8_t> bits(proposals.size(), 0);
+        std::vector<std::uint32_t> bits(proposals.size(), 0);
         if (keepsFaces) keepsFaces->assign(proposals.size(), 1);
         tbb::parallel_for(tbb::blocked_range<std::size_t>(0, proposals.size(), 64), [&](const tbb::blocked_range<std::size_t>& r) {
             OffsetAccessor moved(*deformation.offsets);
@@ -797,8 +831,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             for (std::size_t i = r.begin(); i < r.end(); ++i) {
                 const Coord& n = proposals[i].node;
                 field.sampleNodes(frame, Vec3i(n.x() - 1, n.y() - 1, n.z() - 1), {3, 3, 3}, nullptr, around);
-                for (int j = 0; j < 6; ++j)
-                    if (isInside(around[kNeighbours[j]], iso, side)) bits[i] |= std::uint8_t(1u << j);
+                for (int k = 0; k < 27; ++k)
+                    if (isInside(around[k], iso, side)) bits[i] |= 1u << k;
                 if (keepsFaces) (*keepsFaces)[i] = crossingsOnFeatureFaces(proposals[i], around, moved);
             }
         });
@@ -821,17 +855,21 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // How many of p's six neighbours lie on the other side now (placed nodes by the side they
     // keep, moved nodes on the side they moved to), whether one of them already sits on a
     // feature across the edge between them (that edge's one vertex cannot be at both), and
-    // whether the thin search took one across to p's side.
-    auto neighbourSides = [&](const Proposal& p, std::uint8_t insideBits, bool& sharesCrossing, bool& takenAcross) {
+    // whether one was taken across to p's side (by the thin search, or placed on that side: a
+    // node the thin search moved into a rod and this pass then placed at the rod's root, where
+    // an unmoved neighbour was flipped next, cut the rod off).
+    auto neighbourSides = [&](const Proposal& p, std::uint32_t insideAround, bool& sharesCrossing, bool& takenAcross) {
         int otherSide = 0;
         sharesCrossing = takenAcross = false;
         for (int j = 0; j < 6; ++j) {
             const int k = kNeighbours[j];
             const Coord nb = p.node.offsetBy(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
-            bool inside = (insideBits >> j) & 1u;
+            bool inside = (insideAround >> k) & 1u;
             if (onSurface.isValueOn(nb)) {
+                const bool atRest = inside;
                 inside = insideOnSurface.isValueOn(nb);
                 sharesCrossing = sharesCrossing || inside != p.inside;
+                takenAcross = takenAcross || (inside == p.inside && inside != atRest);
             } else if (offsets.isValueOn(nb)) {
                 inside = !inside; // moved into a thin part
                 takenAcross = takenAcross || inside == p.inside;
@@ -840,9 +878,38 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         }
         return otherSide;
     };
+    // The sides of the 27 nodes around `node` now (bit k: node k of its 3^3 block is inside),
+    // from their sides at rest.
+    auto sidesNow = [&](const Coord& node, std::uint32_t atRest) {
+        std::uint32_t now = atRest;
+        for (int k = 0; k < 27; ++k) {
+            const Coord nb = node.offsetBy(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
+            bool inside = (atRest >> k) & 1u;
+            if (onSurface.isValueOn(nb)) inside = insideOnSurface.isValueOn(nb);
+            else if (offsets.isValueOn(nb)) inside = !inside;
+            now = inside ? now | (1u << k) : now & ~(1u << k);
+        }
+        return now;
+    };
+    // Placed on its feature, a node is a vertex of the surface, where the crossings of all its
+    // edges meet: the surface around it is one disc only where the nodes around it on each side
+    // form one group. A node flipped where they form two (joined by the mesher's own rule: inside
+    // nodes across cube faces, outside ones across face diagonals too) joined two parts of a side
+    // through it: a tunnel under a thin fin's root (the outside on both sides of the fin; 15 of 60
+    // random fins 0.2-0.6 H thick), a rod cut off at its root (the inside of the rod and of the
+    // ball it stands on). A node that keeps its side needs one group of its own side only, and
+    // counted loosely (inside across face diagonals, outside across any corner): around a tip or
+    // a corner its side's nodes often meet across a diagonal (a tetrahedron's tips, a pyramid's
+    // base corners, a notch's corner were lost counted strictly), but a node moved into a rod and
+    // placed at its root, with the rod's nodes above it and the ball's below, cut the rod off.
+    auto splitsLink = [&](const Proposal& p, bool flip, std::uint32_t atRest) {
+        const std::uint32_t now = sidesNow(p.node, atRest);
+        if (flip) return groupsAround(now, true, 6) > 1 || groupsAround(now, false, 18) > 1;
+        return groupsAround(now, p.inside, p.inside ? 18 : 26) > 1;
+    };
 
     std::vector<std::uint8_t> keepsFaces;
-    const std::vector<std::uint8_t> insideNeighbours = sampleNeighbours(all, &keepsFaces);
+    const std::vector<std::uint32_t> insideAround = sampleNeighbours(all, &keepsFaces);
     std::vector<Vec3i> flipped;
     // Where the thin search had put a flipped node (into a crack, off a thin part): a flip that is
     // undone goes back there, not to rest, where it is on the other side (at a crack's rim, a node
@@ -852,7 +919,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     for (std::size_t i = 0; i < all.size(); ++i) {
         const Proposal& p = all[i];
         bool sharesCrossing = false, takenAcross = false;
-        const int otherSide = neighbourSides(p, insideNeighbours[i], sharesCrossing, takenAcross);
+        const int otherSide = neighbourSides(p, insideAround[i], sharesCrossing, takenAcross);
         // A node with no edge to the other side carries no crossing: placed on the feature as it
         // is, it would change nothing. It changes side instead (the feature's tip is a thin part
         // of the other side) and is joined to that side by bridging below — unless it has no
@@ -861,7 +928,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // whose neighbours on the rim went into the crack, flipped onto the rim's edge, made a
         // tunnel under it in 11 of 120 random cracks 0.2-0.5 H wide, 3 of 60 at 0.5-1 H).
         const bool flip = otherSide == 0;
-        if (otherSide == 6 || sharesCrossing || !keepsFaces[i] || (flip && takenAcross)) {
+        if (otherSide == 6 || sharesCrossing || !keepsFaces[i] || (flip && takenAcross) || splitsLink(p, flip, insideAround[i])) {
             ++out.rejected;
             continue;
         }
@@ -1011,10 +1078,10 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             if (keep[i]) along[kept++] = along[i];
         along.resize(kept);
     }
-    const std::vector<std::uint8_t> alongNeighbours = sampleNeighbours(along, nullptr);
+    const std::vector<std::uint32_t> alongAround = sampleNeighbours(along, nullptr);
     for (std::size_t i = 0; i < along.size(); ++i) {
         bool sharesCrossing = false, takenAcross = false;
-        const int otherSide = neighbourSides(along[i], alongNeighbours[i], sharesCrossing, takenAcross);
+        const int otherSide = neighbourSides(along[i], alongAround[i], sharesCrossing, takenAcross);
         if (otherSide == 0 || otherSide == 6 || sharesCrossing) continue;
         place(along[i], along[i].inside);
         ++out.nodesAlongEdges;
