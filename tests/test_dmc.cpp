@@ -2084,6 +2084,20 @@ TEST_CASE("no flip beside a node the thin search took into a rod and the sharp p
     }
 }
 
+TEST_CASE("a rod whose first node meets the ball's across a face diagonal stays attached") {
+    // A rod 0.56 H thick standing on a ball: its node next to the ball lies just outside both, no
+    // cell there is hidden, and the rod's first node meets the ball's across a face diagonal that
+    // marching cubes never joins, the straight segment between them leaving the inside. Bridging
+    // moves one of the face's outside corners to a point of its Ω joining both by straight
+    // segments. (Marching cubes at H leaves the rod apart too.)
+    const Vec3d n(0.094603960554463948, 0.25451339977615328, -0.96243078711239971),
+        c(0.011179395073635114, 0.0090164402159797069, -0.026215359033632857);
+    const std::string f = "min(sqrt(" + radius2(c) + ")-0.5, " + rodFormula(n, c, 0.056127292923334515) + ")";
+    const Mesh m = meshFormula(f, kBox, kH);
+    requireClosed(m);
+    CHECK(piecesWithoutHandles(m, 1));
+}
+
 TEST_CASE("a gap one cell wide leaves no bubble where it meets the outside") {
     // A gap one cell wide through a level-set ball (voxel H/5): the sharp pass flipped a node onto
     // the rim edge where the gap meets the outside, and bridging from it moved a node into the

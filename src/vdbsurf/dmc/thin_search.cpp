@@ -663,11 +663,58 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     }
                     if (best) proposals[fi].push_back(*best);
                 };
+                // Where the segment from inside node p to q across a face leaves the inside, a path
+                // bent at one point can still join them within the cell: a rod about half a cell
+                // thick standing on a ball, whose node next to the ball lies just outside both, so
+                // that no cell there is hidden and the rod's first node meets the ball's across a
+                // face diagonal (2 of 100 random rods 0.2-0.6 H thick came off, marching cubes
+                // leaving them apart too; 1 of them joined so). One of the face's two outside corners moves to the point
+                // of its Ω, at the search's steps, from which both segments stay inside — the one
+                // nearest the diagonal's middle — if the move keeps its edges (as any bridge).
+                auto bridgeViaPoint = [&](const Vec3d& qPos, const std::vector<Vec3i>& between) {
+                    std::optional<Bridge> best;
+                    double bestDistance = INFINITY;
+                    const Vec3d middle = (pPos + qPos) * 0.5;
+                    const int m = options.steps;
+                    auto staysInside = [&](const Vec3d& u, const Vec3d& v) {
+                        const int steps = int(std::ceil(length(v - u) / frame.h * (options.steps + 1))) + 1;
+                        for (int k = 1; k < steps; ++k) {
+                            ++evaluated;
+                            if (!isInside(field.value(u + (v - u) * (double(k) / steps)), iso, side)) return false;
+                        }
+                        return true;
+                    };
+                    for (const Vec3i& b : between) {
+                        bool moved = false;
+                        position(b.x, b.y, b.z, moved);
+                        if (moved) continue;
+                        const Coord n = p.offsetBy(b.x, b.y, b.z);
+                        const Vec3d centre = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z()));
+                        const bool restInside = isInside(rest(b.x, b.y, b.z), iso, side);
+                        for (int z = 0; z < m; ++z)
+                            for (int y = 0; y < m; ++y)
+                                for (int x = 0; x < m; ++x) {
+                                    const Vec3d rel = Vec3d((x + 0.5) / m - 0.5, (y + 0.5) / m - 0.5, (z + 0.5) / m - 0.5) * frame.h;
+                                    const Vec3d at = centre + rel;
+                                    const double dist = length(at - middle);
+                                    if (dist >= bestDistance) continue;
+                                    ++evaluated;
+                                    if (!searcher.otherSide(restInside, field.value(at)) || !staysInside(pPos, at) || !staysInside(at, qPos))
+                                        continue;
+                                    const std::optional<Vec3f> off = offsetInOmega(rel, frame.h);
+                                    if (!off || !edgeRuns.moveEffect(n, restInside, centre + Vec3d(*off), nodes, examined, evaluated).keeps ||
+                                        standsAtFeature(n, restInside, nodes, evaluated))
+                                        continue;
+                                    bestDistance = dist, best = Bridge{n, *off};
+                                }
+                    }
+                    if (best) proposals[fi].push_back(*best);
+                };
                 // Where p and q (an offset from p) lie in one part, one of `between` moves into it.
                 // Joined is checked at steps finer than the thinnest part the search keeps: coarser
                 // steps could step over a sheet of the other side between p and q, and a node
                 // moved across that sheet would join its two sides (a thin shell's surfaces).
-                auto bridgeTo = [&](const Vec3i& q, const std::vector<Vec3i>& between) {
+                auto bridgeTo = [&](const Vec3i& q, const std::vector<Vec3i>& between, bool viaPoint = false) {
                     bool moved = false;
                     const Vec3d qPos = position(q.x, q.y, q.z, moved);
                     const int steps = int(std::ceil(length(qPos - pPos) / frame.h * (options.steps + 1)));
@@ -681,6 +728,8 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     if (joined(qPos, steps) || (pMoved && pInside && edgeRuns.joinedNearby(pPos, qPos, true, evaluated, kBentReach) &&
                                                 !latticeJoins(q)))
                         bridge(between, (pPos + qPos) * 0.5, &qPos);
+                    else if (viaPoint && pInside && !latticeJoins(q))
+                        bridgeViaPoint(qPos, between);
                 };
                 // The offset with a along `axis` and b, c along the next two axes.
                 auto alongAxes = [](int axis, int a, int b, int c) {
@@ -708,7 +757,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                                     ea[std::size_t(a)] = sa;
                                     eb[std::size_t(b)] = sb;
                                     const Vec3i q = ea + eb;
-                                    if (insideAt(q.x, q.y, q.z) && separate({ea, eb})) bridgeTo(q, {ea, eb});
+                                    if (insideAt(q.x, q.y, q.z) && separate({ea, eb})) bridgeTo(q, {ea, eb}, true);
                                 }
                 // Cell diagonals, either side.
                 for (int d = 0; d < 8; ++d) {
