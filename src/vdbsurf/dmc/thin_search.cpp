@@ -668,9 +668,10 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // thick standing on a ball, whose node next to the ball lies just outside both, so
                 // that no cell there is hidden and the rod's first node meets the ball's across a
                 // face diagonal (2 of 100 random rods 0.2-0.6 H thick came off, marching cubes
-                // leaving them apart too; 1 of them joined so). One of the face's two outside corners moves to the point
-                // of its Ω, at the search's steps, from which both segments stay inside — the one
-                // nearest the diagonal's middle — if the move keeps its edges (as any bridge).
+                // leaving them apart too; 1 of them is joined so). One of the face's two outside
+                // corners moves to the point of its Ω, at the search's steps, from which both
+                // segments stay inside — the one nearest the diagonal's middle — if the move keeps
+                // its edges (as any bridge).
                 auto bridgeViaPoint = [&](const Vec3d& qPos, const std::vector<Vec3i>& between) {
                     std::optional<Bridge> best;
                     double bestDistance = INFINITY;
