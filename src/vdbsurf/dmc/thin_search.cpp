@@ -576,11 +576,11 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 const bool pInside = insideAt(0, 0, 0);
                 bool pMoved = false;
                 const Vec3d pPos = position(0, 0, 0, pMoved);
-                // Does the segment from p to q stay on p's side at `steps` steps?
-                auto joined = [&](const Vec3d& q, int steps) {
+                // Does the segment from a to b stay on p's side at `steps` steps?
+                auto onPSide = [&](const Vec3d& a, const Vec3d& b, int steps) {
                     for (int k = 1; k < steps; ++k) {
                         ++evaluated;
-                        const double v = field.value(pPos + (q - pPos) * (double(k) / steps));
+                        const double v = field.value(a + (b - a) * (double(k) / steps));
                         if (pInside ? !isInside(v, iso, side) : !searcher.otherSide(true, v)) return false;
                     }
                     return true;
@@ -623,34 +623,38 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // With `to` (the other node of a diagonal the part joins), a node whose Ω the
                 // samples miss (the part only clips a corner or runs along an edge of it) may move
                 // onto the joining segment where it meets its Ω, if that point is in the part.
+                // Node n moving by `off` becomes `best` if it lands nearer `middle` than `best` does
+                // — unless the move would make one of its edges hide what it showed (a crack's
+                // node pulled into the solid beside it), or n stands at a feature.
+                auto consider = [&](const Coord& n, const Vec3f& off, const Vec3d& middle, std::optional<Bridge>& best,
+                                    double& bestDistance) {
+                    const Vec3d to = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off);
+                    const double dist = length(to - middle);
+                    if (dist >= bestDistance) return;
+                    const Coord d = n - p;
+                    const bool restInside = isInside(rest(d.x(), d.y(), d.z()), iso, side);
+                    if (!edgeRuns.moveEffect(n, restInside, to, nodes, examined, evaluated).keeps) return;
+                    if (standsAtFeature(n, restInside, nodes, evaluated)) return;
+                    bestDistance = dist, best = Bridge{n, off};
+                };
+                // The samples of Ω around node b (an offset from p, at rest) on its other side, in `found`.
+                auto searchOmega = [&](const Vec3i& b) {
+                    for (int z = -1; z <= 1; ++z)
+                        for (int y = -1; y <= 1; ++y)
+                            for (int x = -1; x <= 1; ++x) around[local3(x, y, z)] = rest(b.x + x, b.y + y, b.z + z);
+                    return searcher.search(p.offsetBy(b.x, b.y, b.z), around, false, cells, evaluated, found);
+                };
                 auto bridge = [&](const std::vector<Vec3i>& between, const Vec3d& middle, const Vec3d* to) {
                     std::optional<Bridge> best;
                     double bestDistance = INFINITY;
-                    // A move that would make one of the node's edges hide what it showed (a
-                    // crack's node pulled into the solid beside it) is not made.
-                    auto consider = [&](const Coord& n, const Vec3f& off) {
-                        const Vec3d to = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off);
-                        const double dist = length(to - middle);
-                        if (dist >= bestDistance) return;
-                        const Coord d = n - p;
-                        const bool restInside = isInside(rest(d.x(), d.y(), d.z()), iso, side);
-                        if (!edgeRuns.moveEffect(n, restInside, to, nodes, examined, evaluated).keeps) return;
-                        if (standsAtFeature(n, restInside, nodes, evaluated)) return;
-                        bestDistance = dist, best = Bridge{n, off};
-                    };
                     std::vector<Vec3i> unmoved;
                     for (const Vec3i& b : between) {
                         bool moved = false;
                         position(b.x, b.y, b.z, moved);
                         if (!moved) unmoved.push_back(b);
                     }
-                    for (const Vec3i& b : unmoved) {
-                        const Coord n = p.offsetBy(b.x, b.y, b.z);
-                        for (int z = -1; z <= 1; ++z)
-                            for (int y = -1; y <= 1; ++y)
-                                for (int x = -1; x <= 1; ++x) around[local3(x, y, z)] = rest(b.x + x, b.y + y, b.z + z);
-                        if (const std::optional<Vec3f> off = searcher.search(n, around, false, cells, evaluated, found)) consider(n, *off);
-                    }
+                    for (const Vec3i& b : unmoved)
+                        if (const std::optional<Vec3f> off = searchOmega(b)) consider(p.offsetBy(b.x, b.y, b.z), *off, middle, best, bestDistance);
                     for (std::size_t i = 0; i < unmoved.size() && !best && to; ++i) {
                         const Vec3i& b = unmoved[i];
                         const Coord n = p.offsetBy(b.x, b.y, b.z);
@@ -658,7 +662,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                             ++evaluated;
                             const bool restInside = isInside(rest(b.x, b.y, b.z), iso, side);
                             const Vec3d at = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*off);
-                            if (searcher.otherSide(restInside, field.value(at))) consider(n, *off);
+                            if (searcher.otherSide(restInside, field.value(at))) consider(n, *off, middle, best, bestDistance);
                         }
                     }
                     if (best) proposals[fi].push_back(*best);
@@ -669,22 +673,17 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // that no cell there is hidden and the rod's first node meets the ball's across a
                 // face diagonal (2 of 100 random rods 0.2-0.6 H thick came off, marching cubes
                 // leaving them apart too; 1 of them is joined so). One of the face's two outside
-                // corners moves to the point of its Ω, at the search's steps, from which both
-                // segments stay inside — the one nearest the diagonal's middle — if the move keeps
-                // its edges (as any bridge).
+                // corners moves to the point of its Ω, on a grid at the search's steps, from which
+                // both segments stay inside — the one nearest the diagonal's middle — if the move
+                // keeps its edges (as any bridge). Its cost: smoke_fog at 2 voxels a cell, 3.7 M
+                // thin-search samples without it, 5.1 M with it (5.8 M with OmegaSearch's samples
+                // in place of the grid), about 10 % more time.
                 auto bridgeViaPoint = [&](const Vec3d& qPos, const std::vector<Vec3i>& between) {
                     std::optional<Bridge> best;
                     double bestDistance = INFINITY;
                     const Vec3d middle = (pPos + qPos) * 0.5;
+                    auto stepsTo = [&](const Vec3d& a, const Vec3d& b) { return int(std::ceil(length(b - a) / frame.h * (options.steps + 1))) + 1; };
                     const int m = options.steps;
-                    auto staysInside = [&](const Vec3d& u, const Vec3d& v) {
-                        const int steps = int(std::ceil(length(v - u) / frame.h * (options.steps + 1))) + 1;
-                        for (int k = 1; k < steps; ++k) {
-                            ++evaluated;
-                            if (!isInside(field.value(u + (v - u) * (double(k) / steps)), iso, side)) return false;
-                        }
-                        return true;
-                    };
                     for (const Vec3i& b : between) {
                         bool moved = false;
                         position(b.x, b.y, b.z, moved);
@@ -697,16 +696,12 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                                 for (int x = 0; x < m; ++x) {
                                     const Vec3d rel = Vec3d((x + 0.5) / m - 0.5, (y + 0.5) / m - 0.5, (z + 0.5) / m - 0.5) * frame.h;
                                     const Vec3d at = centre + rel;
-                                    const double dist = length(at - middle);
-                                    if (dist >= bestDistance) continue;
+                                    if (length(at - middle) >= bestDistance) continue;
                                     ++evaluated;
-                                    if (!searcher.otherSide(restInside, field.value(at)) || !staysInside(pPos, at) || !staysInside(at, qPos))
+                                    if (!searcher.otherSide(restInside, field.value(at)) || !onPSide(pPos, at, stepsTo(pPos, at)) ||
+                                        !onPSide(at, qPos, stepsTo(at, qPos)))
                                         continue;
-                                    const std::optional<Vec3f> off = offsetInOmega(rel, frame.h);
-                                    if (!off || !edgeRuns.moveEffect(n, restInside, centre + Vec3d(*off), nodes, examined, evaluated).keeps ||
-                                        standsAtFeature(n, restInside, nodes, evaluated))
-                                        continue;
-                                    bestDistance = dist, best = Bridge{n, *off};
+                                    if (const std::optional<Vec3f> off = offsetInOmega(rel, frame.h)) consider(n, *off, middle, best, bestDistance);
                                 }
                     }
                     if (best) proposals[fi].push_back(*best);
@@ -726,7 +721,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     // a handle the part does not have). Not from outside nodes: the outside around
                     // a crack is mostly wide, and the search spent its whole budget there (noisy
                     // fog resampled to 2 voxels a cell: 690 searches, 5 paths).
-                    if (joined(qPos, steps) || (pMoved && pInside && edgeRuns.joinedNearby(pPos, qPos, true, evaluated, kBentReach) &&
+                    if (onPSide(pPos, qPos, steps) || (pMoved && pInside && edgeRuns.joinedNearby(pPos, qPos, true, evaluated, kBentReach) &&
                                                 !latticeJoins(q)))
                         bridge(between, (pPos + qPos) * 0.5, &qPos);
                     else if (viaPoint && pInside && !latticeJoins(q))
