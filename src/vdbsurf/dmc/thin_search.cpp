@@ -538,7 +538,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     // diagonal partner (noisy fog resampled to 2 voxels a cell: with 100, the thin search took
     // 1.5 times as long). The paths round a crossing of random wires mostly took fewer (with 12
     // or 16, one in 120 more was missed; with 100, 4 of 120 crossings in pieces instead of 8).
-    constexpr int kLatticeJoinSteps = 4, kLatticeJoinWidth = 2 * kLatticeJoinSteps + 1;
+    constexpr int kLatticeJoinSteps = 4, kLatticeJoinWidth = 2 * kLatticeJoinSteps + 1, kLatticeJoinPath = 6;
     constexpr EdgeRuns::JoinReach kBentReach{1.0, 24};
     tbb::enumerable_thread_specific<std::uint64_t> bridgeSamples(0);
     std::uint64_t samplesAfter = 0;
@@ -586,8 +586,15 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     return true;
                 };
                 // Does marching cubes join p to q (an offset from p) through nodes of p's side
-                // (inside ones along edges, outside ones across face diagonals too), within
-                // kLatticeJoinSteps steps of p? (The window's values are sampled when first asked.)
+                // (inside ones along edges, outside ones across face diagonals too), by a path of at
+                // most kLatticeJoinPath steps within kLatticeJoinSteps of p? (The window's values are
+                // sampled when first asked.) A longer path goes round something the bridge would
+                // not close a handle around: in a cubic truss of wires thinner than a cell, 4 cells
+                // apart, a wire's node next to a junction was joined to it only the long way, round
+                // a square of the truss, and was not bridged; the square's loop broke there (7 of
+                // 10 random trusses lost one to four of their 28 loops when any path in the window
+                // counted). With paths of 4 steps, notches about a cell deep lost their concave
+                // corners (bridged across: the path round the notch's floor is longer).
                 std::vector<double> window;
                 auto latticeJoins = [&](const Vec3i& q) {
                     if (window.empty()) {
@@ -602,10 +609,11 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     };
                     std::vector<std::uint8_t> seen(window.size(), 0);
                     std::vector<Vec3i> queue{Vec3i(0, 0, 0)};
+                    std::vector<int> steps{0};
                     seen[at(queue[0])] = 1;
                     const int reach = pInside ? 1 : 2; // steps across faces; outside, across face diagonals too
                     for (std::size_t head = 0; head < queue.size(); ++head)
-                        for (int k = 0; k < 27; ++k) {
+                        for (int k = 0; k < 27 && steps[head] < kLatticeJoinPath; ++k) {
                             const Vec3i d(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
                             const int away = std::abs(d.x) + std::abs(d.y) + std::abs(d.z);
                             if (away == 0 || away > reach) continue;
@@ -615,6 +623,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                             if (nodes.inside(p.offsetBy(n.x, n.y, n.z), isInside(window[at(n)], iso, side)) != pInside) continue;
                             if (n == q) return true;
                             queue.push_back(n);
+                            steps.push_back(steps[head] + 1);
                         }
                     return false;
                 };
