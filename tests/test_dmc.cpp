@@ -434,7 +434,7 @@ TEST_CASE("three thin rods crossing at right angles stay joined at their junctio
     // (a pierced face); it was the node that held a rod to the junction, which came off. Outside
     // nodes the lattice joins nearby already are not bridged so now. These three came out in two
     // pieces. Random junctions 0.3-0.5 H thick, ten sets of 24 from this generator: 10 not whole
-    // before, 4 now (this set: 3 before); 0.2-1 H, five sets of 100 from another: 14 before, 6 now.
+    // before, 2 now (this set: 3 before); 0.2-1 H, five sets of 100 from another: 14 before, 6 now.
     CHECK(junctionWhole(Vec3d(-0.829114, -0.049782, -0.556859), Vec3d(-0.554940, 0.194266, 0.808889),
                         Vec3d(-0.042800, -0.044244, 0.007526), {0.044847, 0.047569, 0.032687}));
     CHECK(junctionWhole(Vec3d(-0.463677, 0.230134, 0.855594), Vec3d(0.859139, -0.119213, 0.497664),
