@@ -448,6 +448,16 @@ TEST_CASE("three thin rods crossing at right angles stay joined at their junctio
                         Vec3d(0.013687, 0.022041, -0.047238), {0.033200, 0.038821, 0.043002}));
     CHECK(junctionWhole(Vec3d(0.120845, 0.559602, 0.819904), Vec3d(0.991747, -0.032427, -0.124040),
                         Vec3d(0.039740, 0.038533, -0.030347), {0.030370, 0.046566, 0.049216}));
+    // The thinnest rod leaves the junction along the edge where four Ω meet, clipping two of them
+    // by a sliver no sample finds; its first node meets the junction's across a face diagonal, and
+    // the straight segment between them passes outside: the node between moves onto the bent path
+    // found instead. It came off.
+    CHECK(junctionWhole(Vec3d(-0.524928, 0.336541, -0.781787), Vec3d(0.336273, -0.761784, -0.553720),
+                        Vec3d(-0.015526, -0.040628, 0.018240), {0.097541, 0.067381, 0.020293}));
+    // Not to a node two steps away: there the path ran round through the junction, which the
+    // lattice joins further on, and the node moved onto it closed a loop (a handle).
+    CHECK(junctionWhole(Vec3d(-0.566182, 0.216439, 0.795357), Vec3d(0.154699, 0.975666, -0.155382),
+                        Vec3d(0.021809, 0.017854, 0.006639), {0.034558, 0.071653, 0.070471}));
     CHECK(junctionsWhole(4, 24) == 24);
 }
 

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <queue>
+#include <tuple>
 #include <unordered_set>
 #include <utility>
 #include <vector>
@@ -85,7 +86,8 @@ bool EdgeRuns::bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::u
     return false;
 }
 
-bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, const JoinReach& reach) const {
+bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, const JoinReach& reach,
+                            std::vector<Vec3d>* path) const {
     // Where a and b are joined the search heads almost straight for b: those it confirms (crack
     // rims) take a few dozen samples; a search that has not arrived within the budget's samples
     // per step of the search (a cell is 2k samples across) is taken to have found no path (noisy
@@ -117,15 +119,17 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
         flagged[i] = 1;
         return true;
     };
-    using Entry = std::pair<double, std::size_t>; // distance to b, index: ties go by index
+    using Entry = std::tuple<double, std::size_t, std::size_t>; // distance to b, index (ties go by it), the sample that queued it
     std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> open;
+    std::vector<std::pair<std::size_t, std::size_t>> cameFrom; // with `path`: each sample taken, and the one that queued it
     const std::size_t first = index(-lo[0], -lo[1], -lo[2]);
     firstQueued(first);
-    open.push({length(b - a), first});
+    open.push({length(b - a), first, first});
     bool atStart = true;
     while (!open.empty()) {
-        const std::size_t at = open.top().second;
+        const std::size_t at = std::get<1>(open.top()), queuedBy = std::get<2>(open.top());
         open.pop();
+        if (path) cameFrom.emplace_back(at, queuedBy);
         const int x = int(at % std::size_t(size[0])), y = int((at / std::size_t(size[0])) % std::size_t(size[1])),
                   z = int(at / (std::size_t(size[0]) * std::size_t(size[1])));
         const Vec3d p = point(x, y, z);
@@ -142,7 +146,20 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
                 ++evaluated;
                 straight = !isOtherSide(inside, mField.value(p + (b - p) * (i / 3.0)), mIso, mSide);
             }
-            if (straight) return true;
+            if (straight) {
+                if (path) {
+                    path->assign(1, b);
+                    // Back from the last sample taken through the ones that queued each.
+                    for (std::size_t i = at;;) {
+                        path->push_back(i == first ? a : point(int(i % std::size_t(size[0])), int((i / std::size_t(size[0])) % std::size_t(size[1])),
+                                                               int(i / (std::size_t(size[0]) * std::size_t(size[1])))));
+                        if (i == first) break;
+                        i = std::find_if(cameFrom.begin(), cameFrom.end(), [&](const auto& e) { return e.first == i; })->second;
+                    }
+                    std::reverse(path->begin(), path->end());
+                }
+                return true;
+            }
         }
         for (int dz = -1; dz <= 1; ++dz)
             for (int dy = -1; dy <= 1; ++dy)
@@ -151,7 +168,7 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
                     if (nx < 0 || ny < 0 || nz < 0 || nx >= size[0] || ny >= size[1] || nz >= size[2]) continue;
                     const std::size_t ni = index(nx, ny, nz);
                     if (!firstQueued(ni)) continue;
-                    open.push({length(b - point(nx, ny, nz)), ni});
+                    open.push({length(b - point(nx, ny, nz)), ni, at});
                 }
     }
     return false;

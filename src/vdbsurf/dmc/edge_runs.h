@@ -115,11 +115,13 @@ public:
     // Do a and b lie in one piece of side `inside` within `reach` (by default, the side's)? A
     // search over samples at h/(2k) (26-connected: a crack at least h/k wide holds a connected
     // layer of them, and a sheet at least h/k wide leaves no diagonal gap between its two sides),
-    // best first towards b, that gives up (no) after reach.budget·k samples.
+    // best first towards b, that gives up (no) after reach.budget·k samples. With `path`, a path
+    // found is put there: the samples from a to b, each on side `inside`, a and b included.
     bool joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const {
         return joinedNearby(a, b, inside, evaluated, inside ? kJunctionReach : kRimReach);
     }
-    bool joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, const JoinReach& reach) const;
+    bool joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated, const JoinReach& reach,
+                      std::vector<Vec3d>* path = nullptr) const;
 
 private:
     const Field& mField;

@@ -487,6 +487,25 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         }
         return best <= reach ? offsetInOmega(nearest, frame.h) : std::nullopt;
     };
+    // The same for a path of samples: the middle one of those in Ω, or the point of Ω nearest
+    // to the path, if within half a search step.
+    auto pathInOmega = [&](const Coord& n, const std::vector<Vec3d>& path) -> std::optional<Vec3f> {
+        const Vec3d centre = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z()));
+        const double half = frame.h / 2;
+        std::vector<std::size_t> within;
+        double best = INFINITY;
+        Vec3d nearest;
+        for (std::size_t i = 0; i < path.size(); ++i) {
+            const Vec3d rel = path[i] - centre;
+            Vec3d clamped;
+            for (int k = 0; k < 3; ++k) clamped[k] = std::clamp(rel[k], -half, half);
+            const double dist = length(clamped - rel);
+            if (dist == 0) within.push_back(i);
+            if (dist < best) best = dist, nearest = clamped;
+        }
+        if (!within.empty()) return offsetInOmega(path[within[within.size() / 2]] - centre, frame.h);
+        return best <= reach ? offsetInOmega(nearest, frame.h) : std::nullopt;
+    };
     const double iso = options.iso;
     const Inside side = field.inside();
     const OmegaSearch searcher(field, lattice, iso, options.steps);
@@ -634,7 +653,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // Try the nodes between (offsets from p); the one that lands nearest the middle moves.
                 // With `to` (the other node of a diagonal the part joins), a node whose Ω the
                 // samples miss (the part only clips a corner or runs along an edge of it) may move
-                // onto the joining segment where it meets its Ω, if that point is in the part.
+                // onto the joining segment (or `path`) where it meets its Ω, if that point is in the part.
                 // Node n moving by `off` becomes `best` if it lands nearer `middle` than `best` does
                 // — unless the move would make one of its edges hide what it showed (a crack's
                 // node pulled into the solid beside it), or n stands at a feature.
@@ -656,7 +675,8 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                             for (int x = -1; x <= 1; ++x) around[local3(x, y, z)] = rest(b.x + x, b.y + y, b.z + z);
                     return searcher.search(p.offsetBy(b.x, b.y, b.z), around, false, cells, evaluated, found);
                 };
-                auto bridge = [&](const std::vector<Vec3i>& between, const Vec3d& middle, const Vec3d* to) {
+                auto bridge = [&](const std::vector<Vec3i>& between, const Vec3d& middle, const Vec3d* to,
+                                  const std::vector<Vec3d>* path = nullptr) {
                     std::optional<Bridge> best;
                     double bestDistance = INFINITY;
                     std::vector<Vec3i> unmoved;
@@ -670,7 +690,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     for (std::size_t i = 0; i < unmoved.size() && !best && to; ++i) {
                         const Vec3i& b = unmoved[i];
                         const Coord n = p.offsetBy(b.x, b.y, b.z);
-                        if (const std::optional<Vec3f> off = segmentInOmega(n, pPos, *to)) {
+                        if (const std::optional<Vec3f> off = path ? pathInOmega(n, *path) : segmentInOmega(n, pPos, *to)) {
                             ++evaluated;
                             const bool restInside = isInside(rest(b.x, b.y, b.z), iso, side);
                             const Vec3d at = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(*off);
@@ -746,12 +766,20 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     // rods 0.2-1 H on plates 0.2-1 H, at least 45 degrees from them: 14 of 300 came
                     // off or got a handle from one end, 8 from both; noisy fog resampled to 1 and 2
                     // voxels a cell: 7-8 % more thin-search samples).
+                    // A node between whose Ω the samples miss moves onto the path found where it
+                    // crosses its Ω: where a rod thinner than a cell leaves a junction along the
+                    // edge where four Ω meet, the straight segment passes outside. Only across a
+                    // face or a cell: to a node two steps away, the path can run round through a
+                    // junction that the lattice joins further on (a bridge there made a handle).
+                    std::vector<Vec3d> path;
                     auto bentJoins = [&] {
-                        return edgeRuns.joinedNearby(pPos, qPos, true, evaluated, kBentReach) ||
-                               edgeRuns.joinedNearby(qPos, pPos, true, evaluated, kBentReach);
+                        return edgeRuns.joinedNearby(pPos, qPos, true, evaluated, kBentReach, &path) ||
+                               edgeRuns.joinedNearby(qPos, pPos, true, evaluated, kBentReach, &path);
                     };
-                    if (onPSide(pPos, qPos, steps) || ((pMoved || bentFromRest) && pInside && bentJoins() && !latticeJoins(q)))
+                    if (onPSide(pPos, qPos, steps))
                         bridge(between, (pPos + qPos) * 0.5, &qPos);
+                    else if ((pMoved || bentFromRest) && pInside && bentJoins() && !latticeJoins(q))
+                        bridge(between, (pPos + qPos) * 0.5, &qPos, std::max({std::abs(q.x), std::abs(q.y), std::abs(q.z)}) > 1 ? nullptr : &path);
                     else if (viaPoint && pInside && !latticeJoins(q))
                         bridgeViaPoint(qPos, between);
                 };
