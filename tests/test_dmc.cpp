@@ -458,6 +458,12 @@ TEST_CASE("three thin rods crossing at right angles stay joined at their junctio
     // lattice joins further on, and the node moved onto it closed a loop (a handle).
     CHECK(junctionWhole(Vec3d(-0.566182, 0.216439, 0.795357), Vec3d(0.154699, 0.975666, -0.155382),
                         Vec3d(0.021809, 0.017854, 0.006639), {0.034558, 0.071653, 0.070471}));
+    // A corner of a truss: the wire nearly along a lattice axis came off two cells from the
+    // junction. The node that had to move into it was refused because the outside node amid the
+    // three wires would have had no outside neighbour left along an edge; marching cubes joins it
+    // to the outside across face diagonals, which now count for an outside node.
+    CHECK(junctionWhole(Vec3d(-0.999601, 0.027342, -0.007050), Vec3d(0.028025, 0.930254, -0.365845),
+                        Vec3d(-0.397726, -0.221942, 0.512335), {0.032992, 0.037055, 0.050234}));
     CHECK(junctionsWhole(4, 24) == 24);
 }
 
@@ -465,7 +471,9 @@ TEST_CASE("a cubic truss of wires thinner than a cell keeps every loop") {
     // A wire's node next to a junction was joined to the junction only the long way round a
     // square of the truss (4 cells a side), which the lattice's own join test counted: bridging
     // left it apart, and the square's loop broke there. Now only paths of up to 6 steps count.
-    // Six sets of three random trusses: 5 of 18 whole before, 13 now; this set: 1 of 3 before.
+    // Six sets of three random trusses: 5 of 18 whole before, 13 after that, 16 now (outside
+    // nodes counting across face diagonals for company, EdgeRuns::moveEffect); this set: 1 of 3
+    // before.
     std::mt19937 rng(4);
     int whole = 0;
     for (int trial = 0; trial < 3; ++trial) whole += trussWhole(rng);
@@ -499,6 +507,10 @@ TEST_CASE("thin plates crossing at random angles mostly come out without holes o
     // stays narrower than a cell for two cells out), get handles: webs across the wedge a cell or
     // more from the line, with outside beneath them, or a plate holed beside one.
     CHECK(crossingPairsWhole(1618, 24, 0.7, 40, plateFormula) >= 19);
+    // A move into one plate next to the line was refused where it left an outside node of the
+    // wedge with outside neighbours only across face diagonals (which marching cubes joins): two
+    // more sets, 38 of 48 whole before they counted, 42 now (five sets: 97 -> 105 of 120).
+    CHECK(crossingPairsWhole(1620, 24, 0.7, 40, plateFormula) + crossingPairsWhole(1621, 24, 0.7, 40, plateFormula) >= 41);
 }
 
 TEST_CASE("thin plates and rods ending on a thin plate stay attached and mostly without holes") {

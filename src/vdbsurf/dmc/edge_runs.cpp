@@ -4,6 +4,7 @@
 #include "vdbsurf/lattice/lattice.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <queue>
 #include <tuple>
@@ -221,7 +222,7 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     // Nor may the move leave a neighbour of c's side with no neighbour of its own side: a node
     // standing alone for a thick part is a bubble (crack nodes bridged into the crack one by one
     // around a node of the half beside it cut it off). Nor may it take from a neighbour placed on
-    // a sharp feature its last edge to the other side: the feature's crossings sit on those
+    // a sharp feature its last edge to the other side (six neighbours only): the feature's crossings sit on those
     // edges, and with none left it vanishes from the mesh (bridging moved the one outside node
     // beside a notch's concave corner into the solid: the mesh cut the corner off by a cell).
     // A neighbour that moved to its side is not such a node: it stands for a thin part or joins
@@ -241,11 +242,28 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         }
         return eInside;
     };
+    // The six axis steps, then the twelve face diagonals.
+    static const std::array<Coord, 18> kAround = [] {
+        std::array<Coord, 18> a;
+        int n = 0;
+        for (int j = 0; j < 6; ++j) a[std::size_t(n++)] = axisStep(j / 2, j % 2 ? 1 : -1);
+        for (int u = 0; u < 3; ++u)
+            for (int v = u + 1; v < 3; ++v)
+                for (int su = -1; su <= 1; su += 2)
+                    for (int sv = -1; sv <= 1; sv += 2) a[std::size_t(n++)] = axisStep(u, su) + axisStep(v, sv);
+        return a;
+    }();
     // Does the node at offset d have a neighbour on `side`, other than c and `besides`, for which
-    // `also` holds?
-    auto neighbourWith = [&](const Coord& d, bool side, const Coord& besides, const auto& also) {
-        for (int j = 0; j < 6; ++j) {
-            const Coord e = d + axisStep(j / 2, j % 2 ? 1 : -1);
+    // `also` holds? With `diagonals`, an outside node counts across a face diagonal too: marching
+    // cubes joins two outside nodes across a face whose other corners are inside, so such a node
+    // is no bubble (where three wires thinner than a cell cross, the outside node amid them has
+    // only such neighbours once the wires' nodes have moved in, and the node that had to move
+    // into one of the wires beside it was refused: the wire came off two cells from the junction;
+    // random pairs of crossing plates 0.3-0.7 H thick with holes or handles 28 -> 16 of 120).
+    auto neighbourWith = [&](const Coord& d, bool side, const Coord& besides, bool diagonals, const auto& also) {
+        const int reach = side || !diagonals ? 6 : 18;
+        for (int j = 0; j < reach; ++j) {
+            const Coord e = d + kAround[std::size_t(j)];
             if (e == Coord(0, 0, 0) || e == besides || !validNode(c + e) || sideAt(e) != side) continue;
             if (also(e)) return true;
         }
@@ -255,9 +273,9 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     // nodes that only have each other are cut off as surely as one alone (two nodes of a half
     // beside a crack at its rim, whose other links to their half had moved into the crack: a
     // 10-vertex bubble).
-    auto neighbourOn = [&](const Coord& d, bool side) {
-        return neighbourWith(d, side, Coord(0, 0, 0), [&](const Coord& e) {
-            return neighbourWith(e, side, d, [](const Coord&) { return true; });
+    auto neighbourOn = [&](const Coord& d, bool side, bool diagonals) {
+        return neighbourWith(d, side, Coord(0, 0, 0), diagonals, [&](const Coord& e) {
+            return neighbourWith(e, side, d, diagonals, [](const Coord&) { return true; });
         });
     };
     for (int k = 0; k < 6; ++k) {
@@ -266,8 +284,8 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         bool nbInside = false;
         at(d, nbInside);
         const bool movedToSide = nodes.offsets.isValueOn(c + d) && !nodes.onSurface.isValueOn(c + d);
-        const bool keepsCompany = nbInside == inside ? movedToSide || neighbourOn(d, nbInside)
-                                                     : !nodes.onSurface.isValueOn(c + d) || neighbourOn(d, inside);
+        const bool keepsCompany = nbInside == inside ? movedToSide || neighbourOn(d, nbInside, true)
+                                                     : !nodes.onSurface.isValueOn(c + d) || neighbourOn(d, inside, false);
         if (!keepsCompany) {
             effect.keeps = false;
             return effect;
