@@ -4,7 +4,6 @@
 #include "vdbsurf/lattice/lattice.h"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <queue>
 #include <tuple>
@@ -106,6 +105,11 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
     }
     auto point = [&](int x, int y, int z) { return a + Vec3d(x + lo[0], y + lo[1], z + lo[2]) * step; };
     auto index = [&](int x, int y, int z) { return std::size_t(x) + std::size_t(size[0]) * (std::size_t(y) + std::size_t(size[1]) * std::size_t(z)); };
+    auto coordinates = [&](std::size_t i, int& x, int& y, int& z) {
+        x = int(i % std::size_t(size[0]));
+        y = int((i / std::size_t(size[0])) % std::size_t(size[1]));
+        z = int(i / (std::size_t(size[0]) * std::size_t(size[1])));
+    };
     // Samples are evaluated when taken from the queue, so a search that heads straight for b
     // evaluates little more than the path. What was queued: a flag a sample of the box (~14 k at
     // the default steps), or a set where the box is large (~50 M samples at --search-steps 64;
@@ -131,8 +135,8 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
         const std::size_t at = std::get<1>(open.top()), queuedBy = std::get<2>(open.top());
         open.pop();
         if (path) cameFrom.emplace_back(at, queuedBy);
-        const int x = int(at % std::size_t(size[0])), y = int((at / std::size_t(size[0])) % std::size_t(size[1])),
-                  z = int(at / (std::size_t(size[0]) * std::size_t(size[1])));
+        int x = 0, y = 0, z = 0;
+        coordinates(at, x, y, z);
         const Vec3d p = point(x, y, z);
         if (!atStart) {
             if (evaluated - before >= kBudget) return false;
@@ -152,8 +156,9 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
                     path->assign(1, b);
                     // Back from the last sample taken through the ones that queued each.
                     for (std::size_t i = at;;) {
-                        path->push_back(i == first ? a : point(int(i % std::size_t(size[0])), int((i / std::size_t(size[0])) % std::size_t(size[1])),
-                                                               int(i / (std::size_t(size[0]) * std::size_t(size[1])))));
+                        int ix = 0, iy = 0, iz = 0;
+                        coordinates(i, ix, iy, iz);
+                        path->push_back(i == first ? a : point(ix, iy, iz));
                         if (i == first) break;
                         i = std::find_if(cameFrom.begin(), cameFrom.end(), [&](const auto& e) { return e.first == i; })->second;
                     }
@@ -242,17 +247,6 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         }
         return eInside;
     };
-    // The six axis steps, then the twelve face diagonals.
-    static const std::array<Coord, 18> kAround = [] {
-        std::array<Coord, 18> a;
-        int n = 0;
-        for (int j = 0; j < 6; ++j) a[std::size_t(n++)] = axisStep(j / 2, j % 2 ? 1 : -1);
-        for (int u = 0; u < 3; ++u)
-            for (int v = u + 1; v < 3; ++v)
-                for (int su = -1; su <= 1; su += 2)
-                    for (int sv = -1; sv <= 1; sv += 2) a[std::size_t(n++)] = axisStep(u, su) + axisStep(v, sv);
-        return a;
-    }();
     // Does the node at offset d have a neighbour on `side`, other than c and `besides`, for which
     // `also` holds? With `diagonals`, an outside node counts across a face diagonal too: marching
     // cubes joins two outside nodes across a face whose other corners are inside, so such a node
@@ -263,7 +257,7 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
     auto neighbourWith = [&](const Coord& d, bool side, const Coord& besides, bool diagonals, const auto& also) {
         const int reach = side || !diagonals ? 6 : 18;
         for (int j = 0; j < reach; ++j) {
-            const Coord e = d + kAround[std::size_t(j)];
+            const Coord e = d + faceNeighbourSteps()[std::size_t(j)];
             if (e == Coord(0, 0, 0) || e == besides || !validNode(c + e) || sideAt(e) != side) continue;
             if (also(e)) return true;
         }

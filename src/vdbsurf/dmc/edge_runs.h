@@ -10,6 +10,7 @@
 
 #include <openvdb/openvdb.h>
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -34,6 +35,22 @@ struct NodeStates {
 // One lattice step along `axis` (0-2), towards `sign` (-1 or 1; 2 or -2 for two steps).
 inline openvdb::Coord axisStep(int axis, int sign) {
     return openvdb::Coord(axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0);
+}
+
+// The six axis steps, then the twelve face diagonals: a node's neighbours along edges, and those
+// marching cubes also joins to an outside node across faces.
+inline const std::array<openvdb::Coord, 18>& faceNeighbourSteps() {
+    static const std::array<openvdb::Coord, 18> steps = [] {
+        std::array<openvdb::Coord, 18> a;
+        std::size_t n = 0;
+        for (int j = 0; j < 6; ++j) a[n++] = axisStep(j / 2, j % 2 ? 1 : -1);
+        for (int u = 0; u < 3; ++u)
+            for (int v = u + 1; v < 3; ++v)
+                for (int su = -1; su <= 1; su += 2)
+                    for (int sv = -1; sv <= 1; sv += 2) a[n++] = axisStep(u, su) + axisStep(v, sv);
+        return a;
+    }();
+    return steps;
 }
 
 // Does `moved` hold a node whose move can change what moving c does (EdgeRuns::moveEffect): one

@@ -461,6 +461,21 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     // where four Ω meet), the point of Ω nearest to it, if that is within half a search step.
     // Returned as an offset from n (offsetInOmega).
     const double reach = frame.h / (2.0 * options.steps);
+    // The point of the Ω around `centre` nearest to the points pointAt(0 … count-1), as an offset,
+    // if it is within half a search step of one.
+    auto nearestInOmega = [&](const Vec3d& centre, int count, const auto& pointAt) -> std::optional<Vec3f> {
+        const double half = frame.h / 2;
+        double best = INFINITY;
+        Vec3d nearest;
+        for (int i = 0; i < count; ++i) {
+            const Vec3d rel = pointAt(i) - centre;
+            Vec3d clamped;
+            for (int k = 0; k < 3; ++k) clamped[k] = std::clamp(rel[k], -half, half);
+            const double dist = length(clamped - rel);
+            if (dist < best) best = dist, nearest = clamped;
+        }
+        return best <= reach ? offsetInOmega(nearest, frame.h) : std::nullopt;
+    };
     auto segmentInOmega = [&](const Coord& n, const Vec3d& a, const Vec3d& b) -> std::optional<Vec3f> {
         const Vec3d centre = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())), d = b - a;
         const double half = frame.h / 2;
@@ -476,16 +491,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
             t1 = std::min(t1, tb);
         }
         if (t0 <= t1) return offsetInOmega(a + d * (0.5 * (t0 + t1)) - centre, frame.h);
-        double best = INFINITY;
-        Vec3d nearest;
-        for (int i = 0; i <= 32; ++i) {
-            const Vec3d rel = a + d * (i / 32.0) - centre;
-            Vec3d clamped;
-            for (int k = 0; k < 3; ++k) clamped[k] = std::clamp(rel[k], -half, half);
-            const double dist = length(clamped - rel);
-            if (dist < best) best = dist, nearest = clamped;
-        }
-        return best <= reach ? offsetInOmega(nearest, frame.h) : std::nullopt;
+        return nearestInOmega(centre, 33, [&](int i) { return a + d * (i / 32.0); });
     };
     // The same for a path of samples: the middle one of those in Ω, or the point of Ω nearest
     // to the path, if within half a search step.
@@ -493,18 +499,12 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
         const Vec3d centre = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z()));
         const double half = frame.h / 2;
         std::vector<std::size_t> within;
-        double best = INFINITY;
-        Vec3d nearest;
         for (std::size_t i = 0; i < path.size(); ++i) {
             const Vec3d rel = path[i] - centre;
-            Vec3d clamped;
-            for (int k = 0; k < 3; ++k) clamped[k] = std::clamp(rel[k], -half, half);
-            const double dist = length(clamped - rel);
-            if (dist == 0) within.push_back(i);
-            if (dist < best) best = dist, nearest = clamped;
+            if (std::fabs(rel.x) <= half && std::fabs(rel.y) <= half && std::fabs(rel.z) <= half) within.push_back(i);
         }
         if (!within.empty()) return offsetInOmega(path[within[within.size() / 2]] - centre, frame.h);
-        return best <= reach ? offsetInOmega(nearest, frame.h) : std::nullopt;
+        return nearestInOmega(centre, int(path.size()), [&](int i) { return path[std::size_t(i)]; });
     };
     const double iso = options.iso;
     const Inside side = field.inside();
@@ -630,13 +630,11 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     std::vector<Vec3i> queue{Vec3i(0, 0, 0)};
                     std::vector<int> steps{0};
                     seen[at(queue[0])] = 1;
-                    const int reach = pInside ? 1 : 2; // steps across faces; outside, across face diagonals too
+                    const int reach = pInside ? 6 : 18; // steps across faces; outside, across face diagonals too
                     for (std::size_t head = 0; head < queue.size(); ++head)
-                        for (int k = 0; k < 27 && steps[head] < kLatticeJoinPath; ++k) {
-                            const Vec3i d(k % 3 - 1, (k / 3) % 3 - 1, k / 9 - 1);
-                            const int away = std::abs(d.x) + std::abs(d.y) + std::abs(d.z);
-                            if (away == 0 || away > reach) continue;
-                            const Vec3i n = queue[head] + d;
+                        for (int k = 0; k < reach && steps[head] < kLatticeJoinPath; ++k) {
+                            const Coord& d = faceNeighbourSteps()[std::size_t(k)];
+                            const Vec3i n = queue[head] + Vec3i(d.x(), d.y(), d.z());
                             if (std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)}) > kLatticeJoinSteps || seen[at(n)]) continue;
                             seen[at(n)] = 1;
                             if (nodes.inside(p.offsetBy(n.x, n.y, n.z), isInside(window[at(n)], iso, side)) != pInside) continue;
