@@ -298,11 +298,10 @@ TEST_CASE("a rod through a lattice face whose corners all lie outside it stays i
 
 namespace {
 
+long eulerCharacteristic(const Mesh& m) { return long(m.points.size()) - long(checkTopology(m).edges) + long(m.polygonCount()); }
+
 // Is the closed mesh m `pieces` pieces, none with a handle (Euler characteristic 2 each)?
-bool piecesWithoutHandles(const Mesh& m, std::size_t pieces) {
-    const long euler = long(m.points.size()) - long(checkTopology(m).edges) + long(m.polygonCount());
-    return countComponents(m) == pieces && euler == 2 * long(pieces);
-}
+bool piecesWithoutHandles(const Mesh& m, std::size_t pieces) { return countComponents(m) == pieces && eulerCharacteristic(m) == 2 * long(pieces); }
 
 // The union of two shapes that cross: whether DMC at kH gives one closed piece without a handle.
 bool unionWhole(const std::string& shapeA, const std::string& shapeB) {
@@ -324,6 +323,9 @@ std::string plateFormula(const Vec3d& n, const Vec3d& c, double width) {
 }
 
 using ThinPart = std::function<std::string(const Vec3d&, const Vec3d&, double)>; // direction, centre, width
+
+// The part of `shape` on the side of the plane through c across n that n points to.
+std::string onSideOf(const Vec3d& n, const Vec3d& c, const std::string& shape) { return "max(" + shape + ", -" + dotWith(n, c) + ")"; }
 
 // Of `count` random pairs of thin parts made by `part` (a formula from a direction, a centre and a
 // width), a fifth to `widest` cells across, at least `degrees` apart, crossing in the centre cell:
@@ -375,7 +377,7 @@ int teesWhole(unsigned seed, int count, const ThinPart& part, bool rod) {
         // The sine of the angle between the part and the plate: |a·b| along a rod, else across.
         while ((rod ? std::fabs(dot(a, b)) : std::sqrt(std::max(0.0, 1 - dot(a, b) * dot(a, b)))) < sin40) b = randomUnit(rng);
         const double wa = width(rng), wb = width(rng);
-        whole += unionWhole(plateFormula(a, c, wa), "max(" + part(b, c, wb) + ", -" + dotWith(a, c) + ")");
+        whole += unionWhole(plateFormula(a, c, wa), onSideOf(a, c, part(b, c, wb)));
     }
     return whole;
 }
@@ -384,7 +386,7 @@ int teesWhole(unsigned seed, int count, const ThinPart& part, bool rod) {
 // across standing on it along m, on the side n points to: whether DMC at kH gives one closed
 // piece without a handle.
 bool teeWhole(const Vec3d& n, const Vec3d& m, const Vec3d& c, double plateWidth, double rodWidth) {
-    return unionWhole(plateFormula(n, c, plateWidth), "max(" + rodFormula(m, c, rodWidth) + ", -" + dotWith(n, c) + ")");
+    return unionWhole(plateFormula(n, c, plateWidth), onSideOf(n, c, rodFormula(m, c, rodWidth)));
 }
 
 // Three rods `widths` across crossing at right angles at c, along a, b and a × b (a and b
@@ -429,8 +431,7 @@ bool trussWhole(std::mt19937& rng) {
     const Mesh m = meshFormula(f, kBox, kH);
     INFO(f);
     requireClosed(m);
-    const long euler = long(m.points.size()) - long(checkTopology(m).edges) + long(m.polygonCount());
-    return countComponents(m) == 1 && euler == 2 - 2 * 28;
+    return countComponents(m) == 1 && eulerCharacteristic(m) == 2 - 2 * 28;
 }
 
 } // namespace
