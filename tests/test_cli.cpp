@@ -514,7 +514,8 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
     {
         std::ofstream(scene) << R"({"primitives": [
             {"core": "ellipsoid", "center": [0,0,0], "radii": [0.6,0.4,0.4], "rotation": [0,0,30], "falloff": 0.3},
-            {"core": "box", "center": [0.6,0,0], "half_extents": [0.2,0.2,0.2], "falloff": 0.2, "name": "nose"}]})";
+            {"core": "box", "center": [0.6,0,0], "half_extents": [0.2,0.2,0.2], "falloff": 0.2, "name": "nose"},
+            {"core": "capsule", "center": [-0.3,0.4,0], "half_length": 0.25, "radius": 0.08, "rotation": [0,0,60], "falloff": 0.15, "name": "arm"}]})";
     }
     auto r = runVdbsurf({"rasterize", scene, "-o", dir.path("d.vdb"), "--voxel-size", "0.02"});
     INFO(r.output);
@@ -528,9 +529,9 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
     CHECK(r.exitCode == 0);
     CHECK(test::fileExists(dir.path("direct.obj")));
 
-    // Move the box, then compare with rasterizing the edited scene from scratch.
-    r = runVdbsurf({"edit", dir.path("d.vdb"), "--set", "1.center=0.7,0.1,0", "--scene-out", dir.path("edited.json"), "-o",
-                    dir.path("e.vdb")});
+    // Move the box and lengthen the capsule, then compare with rasterizing the edited scene from scratch.
+    r = runVdbsurf({"edit", dir.path("d.vdb"), "--set", "1.center=0.7,0.1,0", "--set", "2.half_length=0.35", "--scene-out",
+                    dir.path("edited.json"), "-o", dir.path("e.vdb")});
     INFO(r.output);
     REQUIRE(r.exitCode == 0);
     CHECK(r.output.find("leaves recomputed") != std::string::npos);
@@ -557,6 +558,8 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
         expectFailure(dir, {"rasterize", dir.path(name), "-o", dir.path("bad.vdb"), "--voxel-size", "0.05"}, name, what, now);
         expectFailure(dir, {"mesh", dir.path(name), "-o", dir.path("bad.obj"), "--voxel-size", "0.05"}, name, what, now);
     };
+    bad("flat.json", R"({"primitives": [{"core": "capsule", "center": [0,0,0], "half_length": 1, "radius": 0, "falloff": 0.3}]})",
+        "primitive 0 (capsule): 'radius' must be positive");
     bad("neg.json", R"({"primitives": [{"core": "ellipsoid", "center": [0,0,0], "radii": [-1,1,1], "falloff": 0.3}]})",
         "primitive 0 (ellipsoid): 'radii' must be positive");
     bad("zero.json", R"({"primitives": [{"core": "box", "center": [0,0,0], "half_extents": [1,1,1], "falloff": 0}]})",
@@ -584,11 +587,11 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
     expectFailure(dir, {"edit", dir.path("d.vdb"), "--set", "0.radii=1,0,1", "-o", dir.path("bad.vdb")}, "0.radii",
                   "'radii' must be positive", now);
     // --remove counts by the scene's own numbers, whatever else is removed with it.
-    expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "1", "--remove", "2", "-o", dir.path("bad.vdb")}, "--remove",
-                  "no primitive 2 (the scene has 2,", now);
+    expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "1", "--remove", "3", "-o", dir.path("bad.vdb")}, "--remove",
+                  "no primitive 3 (the scene has 3,", now);
     expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "0", "--remove", "0", "-o", dir.path("bad.vdb")}, "--remove",
                   "primitive 0 is given twice", now);
-    expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "0", "--remove", "1", "-o", dir.path("bad.vdb")}, "d.vdb",
+    expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "0", "--remove", "1", "--remove", "2", "-o", dir.path("bad.vdb")}, "d.vdb",
                   "no primitive with op \"add\"", now);
     writeSphereFile(dir.path("plain.vdb"));
     const auto now2 = dir.files();

@@ -41,23 +41,32 @@ Primitive box(Vec3d c, Vec3d half, double falloff, Vec3d rot = {}, DensityOp op 
     return p;
 }
 
-// A scene with overlaps, a rotated box, and a subtraction.
+// A segment along the local x axis from -halfLength to halfLength, rounded by `radius`.
+Primitive capsule(Vec3d c, double halfLength, double radius, double falloff, Vec3d rot = {}, DensityOp op = DensityOp::Add) {
+    Primitive p = ellipsoid(c, {halfLength, radius, radius}, falloff, rot, op);
+    p.core = CoreShape::Capsule;
+    return p;
+}
+
+// A scene with overlaps, a rotated box, a rotated capsule, and a subtraction.
 std::vector<Primitive> testScene() {
     return {ellipsoid({0, 0, 0}, {0.6, 0.35, 0.3}, 0.3, {10, 20, 30}), box({0.55, 0.1, 0.05}, {0.25, 0.2, 0.15}, 0.2, {0, 35, 15}),
             ellipsoid({-0.45, 0.2, 0}, {0.2, 0.2, 0.2}, 0.25, {}, DensityOp::Subtract, 0.8),
-            ellipsoid({0.1, -0.55, 0.1}, {0.3, 0.12, 0.12}, 0.2, {0, 0, 70})};
+            ellipsoid({0.1, -0.55, 0.1}, {0.3, 0.12, 0.12}, 0.2, {0, 0, 70}),
+            capsule({-0.25, -0.1, 0.4}, 0.3, 0.08, 0.15, {0, 40, 65})};
 }
 
-// Small random boxes and ellipsoids, rotated, one in seven subtracting, in [-1, 1]³ (what the
-// primitive index is for: a particle system as metaballs).
+// Small random boxes, capsules and ellipsoids, rotated, one in seven subtracting, in [-1, 1]³
+// (what the primitive index is for: a particle system as metaballs).
 std::vector<Primitive> randomBlobs(std::mt19937& rng, int count, double smallest, double largest) {
     std::uniform_real_distribution<double> u(-1, 1), r(smallest, largest);
     std::vector<Primitive> prims;
     for (int i = 0; i < count; ++i) {
         const Vec3d c(u(rng), u(rng), u(rng));
         const DensityOp op = i % 7 == 3 ? DensityOp::Subtract : DensityOp::Add;
-        prims.push_back(i % 3 == 0 ? box(c, {r(rng), r(rng), r(rng)}, r(rng), {30.0 * u(rng), 40, 0}, op)
-                                   : ellipsoid(c, {r(rng), r(rng), r(rng)}, r(rng), {0, 50.0 * u(rng), 10}, op));
+        if (i % 3 == 0) prims.push_back(box(c, {r(rng), r(rng), r(rng)}, r(rng), {30.0 * u(rng), 40, 0}, op));
+        else if (i % 6 == 1) prims.push_back(capsule(c, r(rng), r(rng), r(rng), {20.0 * u(rng), 60.0 * u(rng), 5}, op));
+        else prims.push_back(ellipsoid(c, {r(rng), r(rng), r(rng)}, r(rng), {0, 50.0 * u(rng), 10}, op));
     }
     return prims;
 }
@@ -83,6 +92,44 @@ void requireSameVoxels(const openvdb::FloatGrid& a, const openvdb::FloatGrid& b)
     compare(b, a);
     CHECK(mismatches == 0);
     CHECK(a.activeVoxelCount() == b.activeVoxelCount());
+}
+
+// The scene meshed by DMC at spacing h, checked to be one closed, manifold, oriented piece.
+Mesh meshedAsOnePiece(const DensityScene& scene, double h) {
+    MeshRequest req;
+    req.voxelSize = h;
+    MeshReport rep;
+    Mesh m = meshField(scene, req, rep);
+    CHECK(checkTopology(m).closedManifoldOriented());
+    CHECK(countComponents(m) == 1);
+    return m;
+}
+
+// A point given in a primitive's local frame, its distance to the core and its area there.
+struct LocalCase {
+    Vec3d local;
+    double distance;
+    int area;
+};
+
+// Checks p's distance, density, area and core test at each case's point, mapped to the world
+// through the scene's rotation convention (about x, then y, then z, fixed axes), written out
+// here apart from the primitive's own matrix.
+void checkLocalCases(const PreparedPrimitive& p, const std::vector<LocalCase>& cases) {
+    const Primitive& prim = p.primitive();
+    const Vec3d c = prim.center, rot = prim.rotationDegrees;
+    const double k = 3.14159265358979323846 / 180;
+    auto rx = [&](Vec3d v, double a) { return Vec3d(v.x, std::cos(a) * v.y - std::sin(a) * v.z, std::sin(a) * v.y + std::cos(a) * v.z); };
+    auto ry = [&](Vec3d v, double a) { return Vec3d(std::cos(a) * v.x + std::sin(a) * v.z, v.y, -std::sin(a) * v.x + std::cos(a) * v.z); };
+    auto rz = [&](Vec3d v, double a) { return Vec3d(std::cos(a) * v.x - std::sin(a) * v.y, std::sin(a) * v.x + std::cos(a) * v.y, v.z); };
+    for (const LocalCase& cs : cases) {
+        const Vec3d q = c + rz(ry(rx(cs.local, rot.x * k), rot.y * k), rot.z * k);
+        INFO("local " << cs.local.x << " " << cs.local.y << " " << cs.local.z);
+        CHECK(p.coreDistance(q) == Approx(cs.distance).margin(1e-12));
+        CHECK(p.density(q) == Approx(falloffValue(cs.distance / prim.falloff)).margin(1e-12));
+        CHECK(p.area(q) == cs.area);
+        CHECK(p.inCore(q) == (cs.distance == 0));
+    }
 }
 
 } // namespace
@@ -156,11 +203,12 @@ TEST_CASE("densities of many points at once equal density() point by point, bit 
     // roots take different numbers of steps side by side) and beyond, in batches of every length.
     std::mt19937 rng(11);
     std::uniform_real_distribution<double> u(0, 1);
-    for (int shape = 0; shape < 12; ++shape) {
+    for (int shape = 0; shape < 15; ++shape) {
         Primitive e;
-        e.core = shape % 4 == 3 ? CoreShape::Box : CoreShape::Ellipsoid;
+        e.core = shape % 5 == 3 ? CoreShape::Box : shape % 5 == 4 ? CoreShape::Capsule : CoreShape::Ellipsoid;
         e.center = Vec3d(u(rng), u(rng), u(rng));
-        e.size = shape % 4 == 2 ? Vec3d(0.5, 0.5, 0.5) : Vec3d(0.05 + u(rng), 0.05 + u(rng), 0.05 + u(rng));
+        e.size = shape % 5 == 2 ? Vec3d(0.5, 0.5, 0.5) : Vec3d(0.05 + u(rng), 0.05 + u(rng), 0.05 + u(rng));
+        if (e.core == CoreShape::Capsule) e.size.z = e.size.y; // (half length, radius, radius)
         e.rotationDegrees = Vec3d(360 * u(rng), 360 * u(rng), 360 * u(rng));
         e.falloff = 0.1 + u(rng);
         e.weight = 0.5 + u(rng);
@@ -234,20 +282,7 @@ TEST_CASE("a scene's values at many points and at lattice nodes equal value() po
 TEST_CASE("rotated box density: face, edge and corner regions against the closed form") {
     const Vec3d half(0.5, 0.3, 0.2), c(0.2, -0.1, 0.4), rot(20, -35, 50);
     const PreparedPrimitive p(box(c, half, 0.5, rot));
-    // World from local through the same rotation convention (x, then y, then z).
-    const double k = 3.14159265358979323846 / 180;
-    auto world = [&](Vec3d l) {
-        auto rx = [&](Vec3d v, double a) { return Vec3d(v.x, std::cos(a) * v.y - std::sin(a) * v.z, std::sin(a) * v.y + std::cos(a) * v.z); };
-        auto ry = [&](Vec3d v, double a) { return Vec3d(std::cos(a) * v.x + std::sin(a) * v.z, v.y, -std::sin(a) * v.x + std::cos(a) * v.z); };
-        auto rz = [&](Vec3d v, double a) { return Vec3d(std::cos(a) * v.x - std::sin(a) * v.y, std::sin(a) * v.x + std::cos(a) * v.y, v.z); };
-        return c + rz(ry(rx(l, rot.x * k), rot.y * k), rot.z * k);
-    };
-    struct Case {
-        Vec3d local;
-        double distance;
-        int area;
-    };
-    const Case cases[] = {
+    checkLocalCases(p, {
         {{0.5 + 0.1, 0.1, -0.1}, 0.1, 2},                            // face
         {{-0.1, -0.3 - 0.3, 0.05}, 0.3, 1},                          // face, beyond the 0.5 crossing
         {{0.5 + 0.1, 0.3 + 0.2, 0.0}, std::sqrt(0.05), 2},           // edge
@@ -255,13 +290,45 @@ TEST_CASE("rotated box density: face, edge and corner regions against the closed
         {{0.5 + 0.1, -0.3 - 0.1, 0.2 + 0.2}, std::sqrt(0.06), 2},    // corner
         {{0.5 + 0.4, 0.3 + 0.3, 0.2 + 0.1}, std::sqrt(0.26), 0},     // corner, outside the influence
         {{0.1, -0.1, 0.05}, 0.0, 3},                                 // core
-    };
-    for (const Case& cs : cases) {
-        const Vec3d q = world(cs.local);
-        INFO("local " << cs.local.x << " " << cs.local.y << " " << cs.local.z);
-        CHECK(p.coreDistance(q) == Approx(cs.distance).margin(1e-12));
-        CHECK(p.density(q) == Approx(falloffValue(cs.distance / 0.5)).margin(1e-12));
-        CHECK(p.area(q) == cs.area);
+    });
+}
+
+TEST_CASE("rotated capsule density: beside the segment, round its ends, in the core, against the closed form") {
+    const double halfLength = 0.4, radius = 0.15, falloff = 0.5;
+    const Vec3d c(-0.3, 0.2, 0.1), rot(35, -20, 70);
+    const PreparedPrimitive p(capsule(c, halfLength, radius, falloff, rot));
+    checkLocalCases(p, {
+        {{0.2, 0.0, radius + 0.1}, 0.1, 2},                     // beside the segment
+        {{-0.35, -(radius + 0.3) * 0.6, (radius + 0.3) * 0.8}, 0.3, 1}, // beside it, beyond the 0.5 crossing
+        {{halfLength + 0.2, 0.0, 0.0}, 0.2 - radius, 2},        // past an end, on the axis
+        {{-halfLength - 0.3, 0.4, 0.0}, 0.5 - radius, 1},       // round an end
+        {{halfLength + 0.5, 0.3, 0.4}, std::sqrt(0.5) - radius, 0}, // round an end, outside the influence
+        {{-0.3, 0.05, -0.1}, 0.0, 3},                           // core
+        {{halfLength + 0.1, 0.05, 0.0}, 0.0, 3},                // core, in an end's cap
+    });
+    // The gradient is the falloff's slope along the direction away from the segment.
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1, 1);
+    int checked = 0;
+    for (int i = 0; i < 1000; ++i) {
+        const Vec3d q = c + Vec3d(u(rng), u(rng), u(rng)) * (halfLength + radius + falloff);
+        const double d = p.coreDistance(q);
+        if (d < 0.01 || d > falloff - 0.01) continue;
+        const Vec3d g = p.densityGradient(q);
+        const double e = 1e-6;
+        for (int a = 0; a < 3; ++a) {
+            Vec3d s;
+            s[a] = e;
+            CHECK(g[a] == Approx((p.density(q + s) - p.density(q - s)) / (2 * e)).margin(1e-6));
+        }
+        ++checked;
+    }
+    CHECK(checked > 100);
+    // With no length it is a sphere.
+    const PreparedPrimitive ball(capsule(c, 0.0, radius, falloff, rot)), sphere(ellipsoid(c, {radius, radius, radius}, falloff));
+    for (int i = 0; i < 200; ++i) {
+        const Vec3d q = c + Vec3d(u(rng), u(rng), u(rng)) * (radius + falloff);
+        CHECK(ball.density(q) == Approx(sphere.density(q)).margin(1e-12));
     }
 }
 
@@ -653,6 +720,11 @@ TEST_CASE("an edit recomputes only what the primitive touches and equals a full 
         else CHECK(raster.stats().voxelsUpdated > 0);
         requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "test"), o).grid()));
 
+        prims[4].size.x += 0.1; // lengthen and turn the capsule
+        prims[4].rotationDegrees.z += 30;
+        raster.update(DensityScene(prims, "test"));
+        requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "test"), o).grid()));
+
         prims.push_back(box({-0.2, 0.5, 0.3}, {0.2, 0.1, 0.1}, 0.15, {30, 0, 0})); // add
         raster.update(DensityScene(prims, "test"));
         requireSameVoxels(*floatGrid(raster.grid()), *floatGrid(DensityRaster(DensityScene(prims, "test"), o).grid()));
@@ -679,7 +751,8 @@ TEST_CASE("an edit recomputes only what the primitive touches and equals a full 
 TEST_CASE("random edits of random scenes equal full rebuilds, where blocks of every size change their fill") {
     initializeOpenVdb();
     // Scenes two nodes (256 voxels) across, so that edits change the decisions of 128³ … 16³
-    // blocks as well as leaves; the edits grow, shrink, move, add and remove primitives.
+    // blocks as well as leaves; the edits grow, shrink, move, add and remove primitives (boxes,
+    // capsules, ellipsoids).
     std::mt19937 rng(20261124);
     std::uniform_real_distribution<double> u(0, 1);
     auto randomPrimitive = [&] {
@@ -688,7 +761,10 @@ TEST_CASE("random edits of random scenes equal full rebuilds, where blocks of ev
         const Vec3d rot(360 * u(rng), 360 * u(rng), 360 * u(rng));
         const double falloff = 0.05 + 0.3 * u(rng);
         const DensityOp op = u(rng) < 0.2 ? DensityOp::Subtract : DensityOp::Add;
-        return u(rng) < 0.5 ? box(c, size, falloff, rot, op) : ellipsoid(c, size, falloff, rot, op, 0.6 + 0.8 * u(rng));
+        const double kind = u(rng);
+        if (kind < 0.35) return box(c, size, falloff, rot, op);
+        if (kind < 0.6) return capsule(c, size.x, size.y, falloff, rot, op);
+        return ellipsoid(c, size, falloff, rot, op, 0.6 + 0.8 * u(rng));
     };
     for (int trial = 0; trial < 6; ++trial)
         for (bool surfaceOnly : {false, true}) {
@@ -817,12 +893,7 @@ TEST_CASE("rasterizing and meshing a many-primitive scene through the index give
 
 TEST_CASE("the 0.5 surface of one sphere primitive lies half the falloff outside its core") {
     const DensityScene scene({ellipsoid({0.1, 0.2, -0.1}, {0.5, 0.5, 0.5}, 0.4)}, "sphere");
-    MeshRequest req;
-    req.voxelSize = 0.05;
-    MeshReport rep;
-    const Mesh m = meshField(scene, req, rep);
-    CHECK(checkTopology(m).closedManifoldOriented());
-    CHECK(countComponents(m) == 1);
+    const Mesh m = meshedAsOnePiece(scene, 0.05);
     double worst = 0;
     for (const Vec3f& p : m.points) worst = std::max(worst, std::fabs(length(Vec3d(p) - Vec3d(0.1, 0.2, -0.1)) - 0.7));
     CHECK(worst < 1e-4);
@@ -837,6 +908,30 @@ TEST_CASE("the 0.5 surface of one sphere primitive lies half the falloff outside
     double worstGrid = 0;
     for (const Vec3f& p : g.points) worstGrid = std::max(worstGrid, std::fabs(length(Vec3d(p) - Vec3d(0.1, 0.2, -0.1)) - 0.7));
     CHECK(worstGrid < 0.1 * 0.05);
+}
+
+TEST_CASE("the 0.5 surface of one capsule primitive lies half the falloff outside its core") {
+    const double halfLength = 0.45, radius = 0.2, falloff = 0.3;
+    const Vec3d c(0.1, -0.2, 0.05);
+    const DensityScene scene({capsule(c, halfLength, radius, falloff, {0, 25, 40})}, "capsule");
+    const PreparedPrimitive p(scene.primitives()[0]);
+    const Mesh m = meshedAsOnePiece(scene, 0.05);
+    double worst = 0;
+    for (const Vec3f& v : m.points) worst = std::max(worst, std::fabs(p.coreDistance(Vec3d(v)) - falloff / 2));
+    CHECK(worst < 1e-4);
+    const double R = radius + falloff / 2, pi = 3.14159265358979;
+    CHECK(enclosedVolume(m) == Approx(pi * R * R * 2 * halfLength + 4.0 / 3.0 * pi * R * R * R).epsilon(0.01));
+}
+
+TEST_CASE("the example figure: capsule limbs on an ellipsoid body make one closed piece without handles") {
+    const DensityScene scene = readSceneFile(std::string(VDBSURF_SOURCE_DIR) + "/examples/scenes/figure.json");
+    std::size_t capsules = 0;
+    for (const Primitive& p : scene.primitives()) capsules += p.core == CoreShape::Capsule;
+    CHECK(capsules == 4);
+    REQUIRE(scene.voxelSize());
+    const Mesh m = meshedAsOnePiece(scene, *scene.voxelSize());
+    // Euler characteristic 2: no handle (legs whose feet fused, as a first try at this figure had, make one).
+    CHECK(long(m.points.size()) - long(checkTopology(m).edges) + long(m.polygonCount()) == 2);
 }
 
 TEST_CASE("scene files: the documented form parses, and mistakes name the primitive and the field") {
@@ -873,7 +968,28 @@ TEST_CASE("scene files: the documented form parses, and mistakes name the primit
     fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"op\": \"union\"}]}", "'op' must be \"add\" or \"subtract\"");
     fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"weight\": -1}]}", "'weight' must be positive");
     fails("{\"primitives\": [{" + box1 + ", \"falloff\": 0.2, \"weight\": 5000}]}", "primitive 0 (box): 'weight' must be positive and at most 1000");
-    fails("{\"primitives\": [{\"core\": \"torus\"}]}", "'core' must be \"ellipsoid\" or \"box\"");
+    fails("{\"primitives\": [{\"core\": \"torus\"}]}", "'core' must be \"ellipsoid\", \"box\" or \"capsule\"");
+    // A capsule: its segment's half length (0 or more) and its radius (positive), no radii.
+    const std::string capsule1 = R"("core": "capsule", "center": [0,1,0], "rotation": [0,0,90], "falloff": 0.2)";
+    const DensityScene withCapsule =
+        parseSceneText("{\"primitives\": [{" + capsule1 + ", \"half_length\": 0.5, \"radius\": 0.1, \"name\": \"arm\"}]}", "s.json");
+    REQUIRE(withCapsule.primitives().size() == 1);
+    CHECK(withCapsule.primitives()[0].core == CoreShape::Capsule);
+    CHECK(withCapsule.primitives()[0].size.x == 0.5);
+    CHECK(withCapsule.primitives()[0].size.y == 0.1);
+    // Rotated 90 degrees about z, its segment runs along y: density 1 at (0, 1.5, 0), 0.5 at 0.2 beyond.
+    CHECK(withCapsule.value({0, 1.5, 0}) == 1.0);
+    CHECK(withCapsule.value({0, 1.7, 0}) == Approx(0.5).margin(1e-9));
+    CHECK(withCapsule.value({0.2, 1.0, 0}) == Approx(0.5).margin(1e-9));
+    const DensityScene capsuleBack = parseSceneText(sceneToJsonText(withCapsule.primitives(), std::nullopt), "back");
+    CHECK(capsuleBack.value({0.07, 1.33, 0.02}) == withCapsule.value({0.07, 1.33, 0.02}));
+    CHECK(parseSceneText("{\"primitives\": [{" + capsule1 + ", \"half_length\": 0, \"radius\": 0.1}]}", "s.json").primitives().size() == 1);
+    fails("{\"primitives\": [{" + capsule1 + ", \"half_length\": 0.5, \"radius\": -0.1}]}", "primitive 0 (capsule): 'radius' must be positive");
+    fails("{\"primitives\": [{" + capsule1 + ", \"half_length\": -1, \"radius\": 0.1}]}", "'half_length' must be 0 or more");
+    fails("{\"primitives\": [{" + capsule1 + ", \"half_length\": 0.5}]}", "primitive 0 (capsule): 'radius' is missing");
+    fails("{\"primitives\": [{" + capsule1 + ", \"half_length\": 0.5, \"radius\": 0.1, \"radii\": [1,1,1]}]}",
+          "'radii' is not a field of a capsule primitive");
+    fails("{\"primitives\": [{" + capsule1 + ", \"half_length\": [0.5], \"radius\": 0.1}]}", "'half_length' must be a number");
     fails("{\"primitives\": [{\"core\": \"box\", \"center\": [0,0,0], \"falloff\": 1}]}", "'half_extents' is missing");
     fails("{\"primitives\": [], \"units\": \"m\"}", "'units' is not a scene field");
     fails("{\"primitives\": []}", "no primitive with op \"add\"");

@@ -187,6 +187,10 @@ PreparedPrimitive::PreparedPrimitive(const Primitive& p) : mP(p) {
         }
     Vec3d half;
     for (int i = 0; i < 3; ++i) {
+        if (p.core == CoreShape::Capsule) { // the segment's ends, grown by the radius
+            half[i] = std::fabs(mR[i][0]) * p.size.x + p.size.y;
+            continue;
+        }
         double h = 0;
         for (int j = 0; j < 3; ++j) {
             const double e = mR[i][j] * p.size[j];
@@ -220,9 +224,19 @@ Vec3d PreparedPrimitive::boxExcess(const Vec3d& q) const {
             std::max(std::fabs(q.z) - mP.size.z, 0.0)};
 }
 
+Vec3d PreparedPrimitive::offAxis(const Vec3d& q) const {
+    return {q.x - std::clamp(q.x, -mP.size.x, mP.size.x), q.y, q.z};
+}
+
 double PreparedPrimitive::coreDistance(const Vec3d& p, Vec3d& gradient) const {
     const Vec3d q = toLocal(p);
     gradient = Vec3d();
+    if (mP.core == CoreShape::Capsule) {
+        const Vec3d v = offAxis(q);
+        const double len = length(v), d = std::max(0.0, len - mP.size.y);
+        if (d > 0) gradient = toWorld(v / len);
+        return d;
+    }
     if (mP.core == CoreShape::Box) {
         const Vec3d e = boxExcess(q);
         const double d = length(e);
@@ -240,6 +254,7 @@ double PreparedPrimitive::coreDistance(const Vec3d& p) const {
     if (mSphere) return std::max(0.0, length(p - mP.center) - mP.size.x);
     const Vec3d q = toLocal(p);
     if (mP.core == CoreShape::Box) return length(boxExcess(q));
+    if (mP.core == CoreShape::Capsule) return std::max(0.0, length(offAxis(q)) - mP.size.y);
     Vec3d closest;
     return ellipsoidDistance(mP.size, q, closest);
 }
@@ -247,6 +262,7 @@ double PreparedPrimitive::coreDistance(const Vec3d& p) const {
 bool PreparedPrimitive::inCore(const Vec3d& p) const {
     const Vec3d q = toLocal(p);
     if (mP.core == CoreShape::Box) return std::fabs(q.x) <= mP.size.x && std::fabs(q.y) <= mP.size.y && std::fabs(q.z) <= mP.size.z;
+    if (mP.core == CoreShape::Capsule) return length(offAxis(q)) <= mP.size.y;
     const double s = (q.x / mP.size.x) * (q.x / mP.size.x) + (q.y / mP.size.y) * (q.y / mP.size.y) + (q.z / mP.size.z) * (q.z / mP.size.z);
     return s <= 1.0;
 }
@@ -264,7 +280,7 @@ double PreparedPrimitive::distanceLowerBound(double scaled) const {
 
 bool PreparedPrimitive::beyondFalloff(const Vec3d& p) const {
     if (!mInfluence.contains(p)) return true;
-    if (mP.core == CoreShape::Box) return false; // its exact distance is as cheap as a bound
+    if (mP.core != CoreShape::Ellipsoid) return false; // a box's or capsule's exact distance is as cheap as a bound
     return distanceLowerBound(scaledRadius(toLocal(p))) >= mP.falloff;
 }
 
@@ -291,7 +307,7 @@ double PreparedPrimitive::densityOfOtherCores(const Vec3d& p) const {
         Vec3d closest;
         d = ellipsoidDistance(mP.size, q, closest);
     } else {
-        d = coreDistance(p); // boxes: the exact distance is as cheap as any test
+        d = coreDistance(p); // boxes and capsules: the exact distance is as cheap as any test
     }
     return mP.weight * falloffValue(d / mP.falloff);
 }
@@ -318,6 +334,15 @@ void PreparedPrimitive::densities(const Vec3d* points, std::size_t count, double
         const Box3 influence = mInfluence;
         for (std::size_t k = 0; k < count; ++k) {
             const double s = falloffClamped(length(boxExcess(toLocal(points[k]))) / falloff);
+            out[k] = inBox(influence, points[k]) ? weight * s : 0.0;
+        }
+        return;
+    }
+    if (mP.core == CoreShape::Capsule) { // and for capsules (toLocal, offAxis)
+        const double radius = mP.size.y, falloff = mP.falloff, weight = mP.weight;
+        const Box3 influence = mInfluence;
+        for (std::size_t k = 0; k < count; ++k) {
+            const double s = falloffClamped(std::max(0.0, length(offAxis(toLocal(points[k]))) - radius) / falloff);
             out[k] = inBox(influence, points[k]) ? weight * s : 0.0;
         }
         return;
@@ -407,6 +432,12 @@ double PreparedPrimitive::nearestCorePoint(const Vec3d& p, Vec3d& closest) const
         return std::max(0.0, len - mP.size.x);
     }
     const Vec3d q = toLocal(p);
+    if (mP.core == CoreShape::Capsule) {
+        const Vec3d v = offAxis(q);
+        const double len = length(v), d = std::max(0.0, len - mP.size.y);
+        if (d > 0) closest = mP.center + toWorld(q - v + v * (mP.size.y / len));
+        return d;
+    }
     if (mP.core == CoreShape::Box) {
         const double d = length(boxExcess(q));
         const Vec3d x(std::clamp(q.x, -mP.size.x, mP.size.x), std::clamp(q.y, -mP.size.y, mP.size.y),

@@ -1,4 +1,4 @@
-// One density primitive of seed 003: a core (ellipsoid or box) where the density is its weight,
+// One density primitive of seed 003: a core (ellipsoid, box or capsule) where the density is its weight,
 // falling off smoothly with the distance to the core's surface over the influence width, zero
 // beyond. Owns the falloff function, exact distances to the cores, and per-primitive bounds over
 // a box. Scenes (scene.h) sum primitives; the rasterizer and the mesher only see the scene.
@@ -11,7 +11,7 @@
 
 namespace vdbsurf {
 
-enum class CoreShape { Ellipsoid, Box };
+enum class CoreShape { Ellipsoid, Box, Capsule };
 enum class DensityOp { Add, Subtract };
 
 // The falloff s(t) over t = distance / falloff: 1 - 3t² + 2t³ on [0, 1], 0 beyond. The cubic
@@ -30,7 +30,9 @@ struct Primitive {
     std::string name;           // optional label, for messages
     CoreShape core = CoreShape::Ellipsoid;
     Vec3d center;
-    Vec3d size{1, 1, 1};        // radii (ellipsoid) or half extents (box), > 0
+    // Radii (ellipsoid) or half extents (box), > 0; a capsule's (half length ≥ 0, radius > 0,
+    // radius): the points within its radius of a segment along its local x axis.
+    Vec3d size{1, 1, 1};
     Vec3d rotationDegrees;      // about x, then y, then z
     double falloff = 0.5;       // influence width beyond the core, > 0
     double weight = 1.0;        // density in the core, > 0
@@ -108,7 +110,7 @@ public:
     const Box3& coreBox() const { return mCoreBox; }
 
 private:
-    double densityOfOtherCores(const Vec3d& p) const; // density() of boxes and ellipsoids other than spheres
+    double densityOfOtherCores(const Vec3d& p) const; // density() of boxes, capsules and ellipsoids other than spheres
     Vec3d toLocal(const Vec3d& p) const;
     Vec3d toWorld(const Vec3d& v) const;
     bool beyondFalloff(const Vec3d& p) const; // a cheap sufficient test for density 0
@@ -119,6 +121,7 @@ private:
     bool densityWithoutRoot(const Vec3d& local, double& density) const;
     double nearestCorePoint(const Vec3d& p, Vec3d& closest) const; // coreDistance(p), and the point (world)
     Vec3d boxExcess(const Vec3d& local) const;  // box cores: how far past each face
+    Vec3d offAxis(const Vec3d& local) const;    // capsule cores: from the nearest point of the segment
     Primitive mP;
     double mR[3][3]; // local -> world rotation (columns: the local axes in world)
     Box3 mInfluence, mCoreBox;

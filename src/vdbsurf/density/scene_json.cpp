@@ -8,6 +8,7 @@
 #include <cmath>
 #include <set>
 #include <sstream>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -43,15 +44,20 @@ Vec3d triple(const Where& w, const json& j, const std::string& field) {
 Primitive parsePrimitive(const json& j, std::size_t index, const std::string& source) {
     Where w{source, "primitive " + std::to_string(index)};
     if (!j.is_object()) throw Error(source, w.primitive + ": must be an object, not " + shortDump(j));
-    if (!j.contains("core")) throw Error(source, w.primitive + ": 'core' is missing (\"ellipsoid\" or \"box\")");
+    if (!j.contains("core")) throw Error(source, w.primitive + ": 'core' is missing (\"ellipsoid\", \"box\" or \"capsule\")");
     const json& core = j["core"];
-    if (!core.is_string() || (core != "ellipsoid" && core != "box"))
-        throw w.error("core", "must be \"ellipsoid\" or \"box\", not " + shortDump(core));
+    if (!core.is_string() || (core != "ellipsoid" && core != "box" && core != "capsule"))
+        throw w.error("core", "must be \"ellipsoid\", \"box\" or \"capsule\", not " + shortDump(core));
     Primitive p;
-    p.core = core == "box" ? CoreShape::Box : CoreShape::Ellipsoid;
+    p.core = core == "box" ? CoreShape::Box : core == "capsule" ? CoreShape::Capsule : CoreShape::Ellipsoid;
     w.primitive += " (" + core.get<std::string>() + ")";
-    const char* sizeField = p.core == CoreShape::Box ? "half_extents" : "radii";
-    const std::set<std::string> allowed = {"core", "center", sizeField, "rotation", "falloff", "weight", "op", "name"};
+    const bool capsule = p.core == CoreShape::Capsule;
+    // A capsule's size is two numbers (its segment along the local x axis, and its radius), the
+    // others' one a local axis.
+    const std::vector<std::string> sizeFields =
+        capsule ? std::vector<std::string>{"half_length", "radius"} : std::vector<std::string>{p.core == CoreShape::Box ? "half_extents" : "radii"};
+    std::set<std::string> allowed = {"core", "center", "rotation", "falloff", "weight", "op", "name"};
+    allowed.insert(sizeFields.begin(), sizeFields.end());
     for (auto it = j.begin(); it != j.end(); ++it)
         if (!allowed.count(it.key())) {
             std::string list;
@@ -63,12 +69,23 @@ Primitive parsePrimitive(const json& j, std::size_t index, const std::string& so
         p.name = j["name"].get<std::string>();
         w.primitive = "primitive " + std::to_string(index) + " (\"" + p.name + "\")";
     }
-    for (const char* required : {"center", sizeField, "falloff"})
-        if (!j.contains(required)) throw w.error(required, "is missing");
+    std::vector<std::string> required = {"center", "falloff"};
+    required.insert(required.end(), sizeFields.begin(), sizeFields.end());
+    for (const std::string& field : required)
+        if (!j.contains(field)) throw w.error(field, "is missing");
     p.center = triple(w, j["center"], "center");
-    p.size = triple(w, j[sizeField], sizeField);
-    for (int i = 0; i < 3; ++i)
-        if (!(p.size[i] > 0)) throw w.error(sizeField, "must be positive on every axis, not " + shortDump(j[sizeField]));
+    if (capsule) {
+        const double halfLength = number(w, j["half_length"], "half_length"), radius = number(w, j["radius"], "radius");
+        if (!(halfLength >= 0))
+            throw w.error("half_length", "must be 0 or more (half the length of the segment the capsule rounds), not " + shortDump(j["half_length"]));
+        if (!(radius > 0)) throw w.error("radius", "must be positive, not " + shortDump(j["radius"]));
+        p.size = Vec3d(halfLength, radius, radius);
+    } else {
+        const std::string& sizeField = sizeFields[0];
+        p.size = triple(w, j[sizeField], sizeField);
+        for (int i = 0; i < 3; ++i)
+            if (!(p.size[i] > 0)) throw w.error(sizeField, "must be positive on every axis, not " + shortDump(j[sizeField]));
+    }
     if (j.contains("rotation")) p.rotationDegrees = triple(w, j["rotation"], "rotation");
     p.falloff = number(w, j["falloff"], "falloff");
     if (!(p.falloff > 0)) throw w.error("falloff", "must be positive (the width of the influence beyond the core), not " + shortDump(j["falloff"]));
@@ -117,13 +134,18 @@ json parseText(const std::string& text, const std::string& source) {
 }
 
 json primitiveJson(const Primitive& p) {
-    json j{{"core", p.core == CoreShape::Box ? "box" : "ellipsoid"},
+    json j{{"core", p.core == CoreShape::Box ? "box" : p.core == CoreShape::Capsule ? "capsule" : "ellipsoid"},
            {"center", {p.center.x, p.center.y, p.center.z}},
-           {p.core == CoreShape::Box ? "half_extents" : "radii", {p.size.x, p.size.y, p.size.z}},
            {"rotation", {p.rotationDegrees.x, p.rotationDegrees.y, p.rotationDegrees.z}},
            {"falloff", p.falloff},
            {"weight", p.weight},
            {"op", p.op == DensityOp::Add ? "add" : "subtract"}};
+    if (p.core == CoreShape::Capsule) {
+        j["half_length"] = p.size.x;
+        j["radius"] = p.size.y;
+    } else {
+        j[p.core == CoreShape::Box ? "half_extents" : "radii"] = {p.size.x, p.size.y, p.size.z};
+    }
     if (!p.name.empty()) j["name"] = p.name;
     return j;
 }
