@@ -523,6 +523,25 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
     r = runVdbsurf({"info", dir.path("d.vdb")});
     CHECK(r.output.find("density") != std::string::npos);
     CHECK(r.output.find("fog") != std::string::npos);
+    // The raster's scene, numbered as edit numbers it; and the scene file itself.
+    CHECK(r.output.find("from a scene of 3 primitives") != std::string::npos);
+    CHECK(r.output.find("2  arm   capsule    half length 0.25, radius 0.08") != std::string::npos);
+    r = runVdbsurf({"info", scene});
+    INFO(r.output);
+    CHECK(r.exitCode == 0);
+    CHECK(r.output.find("a density scene of 3 primitives (3 adding, 0 subtracting)") != std::string::npos);
+    CHECK(r.output.find("1  nose  box        half extents (0.2, 0.2, 0.2)") != std::string::npos);
+    CHECK(r.output.find("need --voxel-size") != std::string::npos);
+    r = runVdbsurf({"-q", "info", "--json", scene});
+    {
+        const auto j = nlohmann::json::parse(r.output);
+        CHECK(j["kind"] == "density scene");
+        REQUIRE(j["primitives"].size() == 3);
+        CHECK(j["primitives"][2]["core"] == "capsule");
+        CHECK(j["primitives"][2]["index"] == 2);
+        CHECK(j["primitives"][2]["half_length"].get<double>() == 0.25);
+        CHECK(j["influence_bbox"][1][0].get<double>() == Approx(1.0)); // the box: 0.6 + 0.2 core + 0.2 falloff
+    }
 
     r = runVdbsurf({"mesh", scene, "-o", dir.path("direct.obj"), "--voxel-size", "0.05"});
     INFO(r.output);
@@ -548,6 +567,13 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
         for (auto c = bb.begin(); c; ++c) differ += fa.getValue(*c) != *it || !fa.isValueOn(*c);
     }
     CHECK(differ == 0);
+    r = runVdbsurf({"-q", "info", "--json", dir.path("e.vdb")});
+    {
+        const auto j = nlohmann::json::parse(r.output);
+        REQUIRE(j["grids"].size() == 1);
+        CHECK_FALSE(j["grids"][0]["scene"]["surface_only"].get<bool>());
+        CHECK(j["grids"][0]["scene"]["primitives"][2]["half_length"].get<double>() == 0.35);
+    }
 
     const auto before = dir.files();
     auto bad = [&](const std::string& name, const std::string& text, const std::string& what) {
@@ -557,6 +583,7 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
         const auto now = dir.files();
         expectFailure(dir, {"rasterize", dir.path(name), "-o", dir.path("bad.vdb"), "--voxel-size", "0.05"}, name, what, now);
         expectFailure(dir, {"mesh", dir.path(name), "-o", dir.path("bad.obj"), "--voxel-size", "0.05"}, name, what, now);
+        expectFailure(dir, {"info", dir.path(name)}, name, what, now);
     };
     bad("flat.json", R"({"primitives": [{"core": "capsule", "center": [0,0,0], "half_length": 1, "radius": 0, "falloff": 0.3}]})",
         "primitive 0 (capsule): 'radius' must be positive");

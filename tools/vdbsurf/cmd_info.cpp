@@ -1,8 +1,12 @@
-// vdbsurf info IN.vdb|IN.obj|IN.ply [--json]: what a file holds — a volume grid by grid, a mesh
-// by its counts and topology, and whether subdivide and patches take it (and if not, why).
+// vdbsurf info IN.vdb|IN.obj|IN.ply|IN.json [--json]: what a file holds — a volume grid by grid
+// (and, for a raster of a density scene, the scene's primitives as `edit` numbers them), a mesh by
+// its counts and topology and whether subdivide and patches take it (and if not, why), a density
+// scene by its primitives and extent.
 #include "cli_common.h"
 
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/density/scene.h"
+#include "vdbsurf/density/scene_json.h"
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_io.h"
 #include "vdbsurf/reeb/closed_surface.h"
@@ -11,6 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <iomanip>
 #include <iostream>
 #include <sstream>
@@ -31,6 +36,69 @@ std::string voxelText(const Vec3d& v) {
     if (v.x == v.y && v.y == v.z) s << v.x;
     else s << v.x << " x " << v.y << " x " << v.z;
     return s.str();
+}
+
+std::string coreSize(const Primitive& p) {
+    std::ostringstream s;
+    s << std::setprecision(6);
+    switch (p.core) {
+    case CoreShape::Ellipsoid: s << "radii " << vecText(p.size); break;
+    case CoreShape::Box: s << "half extents " << vecText(p.size); break;
+    case CoreShape::Capsule: s << "half length " << p.size.x << ", radius " << p.size.y; break;
+    }
+    return s.str();
+}
+
+// The primitives as `edit --set N.field=value` numbers them, one row each.
+void printPrimitives(const std::vector<Primitive>& prims) {
+    std::vector<std::array<std::string, 9>> rows{{"#", "name", "core", "size", "center", "rotation", "falloff", "weight", "op"}};
+    for (std::size_t i = 0; i < prims.size(); ++i) {
+        const Primitive& p = prims[i];
+        std::ostringstream falloff, weight;
+        falloff << std::setprecision(6) << p.falloff;
+        weight << std::setprecision(6) << p.weight;
+        const char* core = p.core == CoreShape::Box ? "box" : p.core == CoreShape::Capsule ? "capsule" : "ellipsoid";
+        rows.push_back({std::to_string(i), p.name.empty() ? "-" : p.name, core, coreSize(p), vecText(p.center),
+                        vecText(p.rotationDegrees), falloff.str(), weight.str(), p.op == DensityOp::Add ? "add" : "subtract"});
+    }
+    std::array<std::size_t, 9> width{};
+    for (const auto& r : rows)
+        for (std::size_t c = 0; c < r.size(); ++c) width[c] = std::max(width[c], r[c].size());
+    for (const auto& r : rows) {
+        std::cout << "  ";
+        for (std::size_t c = 0; c + 1 < r.size(); ++c) std::cout << std::left << std::setw(int(width[c])) << r[c] << "  ";
+        std::cout << r.back() << "\n";
+    }
+}
+
+// The primitives in the scene file's own form, each with its number.
+nlohmann::json primitivesJson(const std::vector<Primitive>& prims) {
+    nlohmann::json list = nlohmann::json::parse(sceneToJsonText(prims, std::nullopt))["primitives"];
+    for (std::size_t i = 0; i < list.size(); ++i) list[i]["index"] = i;
+    return list;
+}
+
+void describeScene(const std::string& path, bool json) {
+    const DensityScene scene = readSceneFile(path);
+    const std::vector<Primitive>& prims = scene.primitives();
+    std::size_t subtract = 0;
+    for (const Primitive& p : prims) subtract += p.op == DensityOp::Subtract;
+    const Box3 d = scene.domain();
+    if (json) {
+        nlohmann::json j{{"file", path},
+                         {"kind", "density scene"},
+                         {"primitives", primitivesJson(prims)},
+                         {"influence_bbox", {{d.min.x, d.min.y, d.min.z}, {d.max.x, d.max.y, d.max.z}}},
+                         {"voxel_size", scene.voxelSize() ? nlohmann::json(*scene.voxelSize()) : nlohmann::json(nullptr)}};
+        std::cout << j.dump(2) << "\n";
+        return;
+    }
+    std::cout << path << ": a density scene of " << prims.size() << (prims.size() == 1 ? " primitive" : " primitives") << " ("
+              << prims.size() - subtract << " adding, " << subtract << " subtracting)\n";
+    std::cout << "  influence bbox " << vecText(d.min) << " .. " << vecText(d.max) << "\n";
+    if (scene.voxelSize()) std::cout << "  voxel size " << *scene.voxelSize() << " (the scene's own, for mesh and rasterize)\n";
+    else std::cout << "  no voxel size of its own: mesh and rasterize need --voxel-size\n";
+    printPrimitives(prims);
 }
 
 // Whether a job takes the mesh: "" if so, else the error it would stop with (without the file
@@ -116,8 +184,9 @@ Action addInfoCommand(CLI::App& app) {
     };
     auto opt = std::make_shared<Options>();
     CLI::App* sub = app.add_subcommand("info", "List the grids of a .vdb file (name, type, class, voxel size, active voxels, world "
-                                               "bounds), or describe a mesh (counts, topology, what subdivide and patches make of it)");
-    sub->add_option("input", opt->input, "The .vdb, .obj or .ply file")->required();
+                                               "bounds; a raster's scene), describe a mesh (counts, topology, what subdivide and "
+                                               "patches make of it), or list a density scene's primitives");
+    sub->add_option("input", opt->input, "The .vdb, .obj, .ply or scene .json file")->required();
     sub->add_flag("--json", opt->json, "Print JSON instead of a table");
     sub->add_flag("--verify", opt->verify, "Read every grid in full (slower), so damaged or truncated data is reported");
     return [opt] {
@@ -126,7 +195,15 @@ Action addInfoCommand(CLI::App& app) {
             describeMesh(opt->input, opt->json);
             return;
         }
+        if (opt->input.size() > 5 && opt->input.substr(opt->input.size() - 5) == ".json") {
+            describeScene(opt->input, opt->json);
+            return;
+        }
         const auto grids = summarizeVdbFile(opt->input, opt->verify);
+        // A raster's scene, as `edit` reads it (a file whose scene does not parse is reported so).
+        auto sceneOf = [&](const GridSummary& g) {
+            return parseSceneText(g.scene, opt->input + " (grid '" + g.name + "', its scene)").primitives();
+        };
         if (opt->json) {
             nlohmann::json out = nlohmann::json::array();
             for (const auto& g : grids) {
@@ -139,6 +216,7 @@ Action addInfoCommand(CLI::App& app) {
                                        {g.worldBounds.max.x, g.worldBounds.max.y, g.worldBounds.max.z}};
                 else
                     j["world_bbox"] = nullptr;
+                if (!g.scene.empty()) j["scene"] = {{"surface_only", g.surfaceOnly}, {"primitives", primitivesJson(sceneOf(g))}};
                 out.push_back(j);
             }
             std::cout << nlohmann::json{{"file", opt->input}, {"grids", out}}.dump(2) << "\n";
@@ -167,6 +245,14 @@ Action addInfoCommand(CLI::App& app) {
                 std::cout << "  " << g.name << ": a camera frustum's transform, its voxel size at the near plane's centre (voxels "
                           << "widen with depth)" << (g.scalar ? "; meshed on its voxels, the mesh mapped through the frustum" : "")
                           << "\n";
+        for (const auto& g : grids) {
+            if (g.scene.empty()) continue;
+            const std::vector<Primitive> prims = sceneOf(g);
+            std::cout << "  " << g.name << ": rasterized by vdbsurf (" << (g.surfaceOnly ? "surface only" : "full") << ") from a scene of "
+                      << prims.size() << (prims.size() == 1 ? " primitive" : " primitives")
+                      << "; `vdbsurf edit` changes them by these numbers (--set N.field=value, --remove N):\n";
+            printPrimitives(prims);
+        }
     };
 }
 

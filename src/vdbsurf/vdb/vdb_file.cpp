@@ -136,6 +136,8 @@ std::vector<GridSummary> summarizeVdbFile(const std::string& path, bool verify) 
         s.voxelSize = {vs.x(), vs.y(), vs.z()};
         s.frustum = !meta->transform().isLinear();
         s.scalar = isScalarType(*meta);
+        readMeta(*meta, "vdbsurf_scene", s.scene);
+        readMeta(*meta, "vdbsurf_surface_only", s.surfaceOnly);
         // Writers record voxel count and bounds as grid metadata; read the grid only when absent.
         openvdb::Int64 count = 0;
         openvdb::Vec3i bmin, bmax;

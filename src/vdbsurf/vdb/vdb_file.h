@@ -21,6 +21,10 @@ struct GridSummary {
     Box3 worldBounds;       // of the active voxels; meaningless when empty
     bool scalar = false;    // float or double: meshable
     bool frustum = false;   // a camera frustum's transform: voxelSize is at its near plane's centre
+    // A density grid written by `vdbsurf rasterize`: the scene it was made from (JSON, as
+    // `edit` reads it; empty otherwise) and whether it holds the surface's band only.
+    std::string scene;
+    bool surfaceOnly = false;
 };
 
 void initializeOpenVdb();
