@@ -57,8 +57,7 @@ void printPrimitives(const std::vector<Primitive>& prims) {
         std::ostringstream falloff, weight;
         falloff << std::setprecision(6) << p.falloff;
         weight << std::setprecision(6) << p.weight;
-        const char* core = p.core == CoreShape::Box ? "box" : p.core == CoreShape::Capsule ? "capsule" : "ellipsoid";
-        rows.push_back({std::to_string(i), p.name.empty() ? "-" : p.name, core, coreSize(p), vecText(p.center),
+        rows.push_back({std::to_string(i), p.name.empty() ? "-" : p.name, coreName(p.core), coreSize(p), vecText(p.center),
                         vecText(p.rotationDegrees), falloff.str(), weight.str(), p.op == DensityOp::Add ? "add" : "subtract"});
     }
     std::array<std::size_t, 9> width{};

@@ -134,7 +134,7 @@ json parseText(const std::string& text, const std::string& source) {
 }
 
 json primitiveJson(const Primitive& p) {
-    json j{{"core", p.core == CoreShape::Box ? "box" : p.core == CoreShape::Capsule ? "capsule" : "ellipsoid"},
+    json j{{"core", coreName(p.core)},
            {"center", {p.center.x, p.center.y, p.center.z}},
            {"rotation", {p.rotationDegrees.x, p.rotationDegrees.y, p.rotationDegrees.z}},
            {"falloff", p.falloff},
@@ -151,6 +151,15 @@ json primitiveJson(const Primitive& p) {
 }
 
 } // namespace
+
+const char* coreName(CoreShape core) {
+    switch (core) {
+    case CoreShape::Ellipsoid: return "ellipsoid";
+    case CoreShape::Box: return "box";
+    case CoreShape::Capsule: return "capsule";
+    }
+    return "?";
+}
 
 DensityScene parseSceneText(const std::string& text, const std::string& source) {
     return parseSceneJson(parseText(text, source), source);

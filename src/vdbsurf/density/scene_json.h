@@ -11,6 +11,9 @@ namespace vdbsurf {
 DensityScene parseSceneText(const std::string& text, const std::string& source);
 DensityScene readSceneFile(const std::string& path);
 
+// A core's name in scene files: "ellipsoid", "box", "capsule".
+const char* coreName(CoreShape core);
+
 // The scene as JSON text (every field spelled out), readable by parseSceneText.
 std::string sceneToJsonText(const std::vector<Primitive>& primitives, std::optional<double> voxelSize);
 
