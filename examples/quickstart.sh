@@ -28,7 +28,8 @@ echo "== 5. a blobby density scene (examples/scenes/blobby.json): meshed directl
 "$vdbsurf" mesh "$here/scenes/blobby.json" -o "$out/blobby.obj"
 "$vdbsurf" rasterize "$here/scenes/blobby.json" -o "$out/blobby.vdb"
 
-echo "== 6. move the head (primitive 1): only the leaves it touches are recomputed"
+echo "== 6. move the head (primitive 1, as info numbers them): only the leaves it touches are recomputed"
+"$vdbsurf" info "$out/blobby.vdb"
 "$vdbsurf" edit "$out/blobby.vdb" --set 1.center=1.25,0.6,0.1 -o "$out/blobby_moved.vdb" --scene-out "$out/blobby_moved.json"
 "$vdbsurf" mesh "$out/blobby_moved.vdb" -o "$out/blobby_moved.obj"
 
