@@ -137,7 +137,8 @@ Action addEditCommand(CLI::App& app) {
         "edit", "Change primitives of a rasterized scene (.vdb from rasterize), recomputing only the leaves they touch");
     sub->add_option("input", o->input, "A .vdb written by vdbsurf rasterize")->required();
     sub->add_option("-o,--output", o->output, "Output .vdb")->required();
-    sub->add_option("--set", o->set, "N.field=value, e.g. 0.center=1,0,0 or 1.op=subtract (repeatable)");
+    sub->add_option("--set", o->set,
+                    "N.field=value, e.g. 0.center=1,0,0 or 1.op=subtract (repeatable; N as `vdbsurf info INPUT` numbers the primitives)");
     sub->add_option("--remove", o->remove, "Remove primitive N (repeatable)");
     sub->add_option("--add", o->add, "Add a primitive given as JSON, e.g. '{\"core\":\"box\",...}' (repeatable)");
     sub->add_option("--scene-out", o->sceneOut, "Also write the edited scene as .json");
