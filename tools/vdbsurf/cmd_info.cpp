@@ -38,15 +38,19 @@ std::string voxelText(const Vec3d& v) {
     return s.str();
 }
 
-std::string coreSize(const Primitive& p) {
+std::string numberText(double v) {
     std::ostringstream s;
-    s << std::setprecision(6);
-    switch (p.core) {
-    case CoreShape::Ellipsoid: s << "radii " << vecText(p.size); break;
-    case CoreShape::Box: s << "half extents " << vecText(p.size); break;
-    case CoreShape::Capsule: s << "half length " << p.size.x << ", radius " << p.size.y; break;
-    }
+    s << std::setprecision(6) << v;
     return s.str();
+}
+
+std::string coreSize(const Primitive& p) {
+    switch (p.core) {
+    case CoreShape::Ellipsoid: return "radii " + vecText(p.size);
+    case CoreShape::Box: return "half extents " + vecText(p.size);
+    case CoreShape::Capsule: return "half length " + numberText(p.size.x) + ", radius " + numberText(p.size.y);
+    }
+    return "?";
 }
 
 // The primitives as `edit --set N.field=value` numbers them, one row each.
@@ -54,11 +58,8 @@ void printPrimitives(const std::vector<Primitive>& prims) {
     std::vector<std::array<std::string, 9>> rows{{"#", "name", "core", "size", "center", "rotation", "falloff", "weight", "op"}};
     for (std::size_t i = 0; i < prims.size(); ++i) {
         const Primitive& p = prims[i];
-        std::ostringstream falloff, weight;
-        falloff << std::setprecision(6) << p.falloff;
-        weight << std::setprecision(6) << p.weight;
         rows.push_back({std::to_string(i), p.name.empty() ? "-" : p.name, coreName(p.core), coreSize(p), vecText(p.center),
-                        vecText(p.rotationDegrees), falloff.str(), weight.str(), p.op == DensityOp::Add ? "add" : "subtract"});
+                        vecText(p.rotationDegrees), numberText(p.falloff), numberText(p.weight), p.op == DensityOp::Add ? "add" : "subtract"});
     }
     std::array<std::size_t, 9> width{};
     for (const auto& r : rows)
