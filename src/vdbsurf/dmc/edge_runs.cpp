@@ -181,7 +181,7 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
 }
 
 EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
-                                          std::uint64_t& evaluated) const {
+                                          std::uint64_t& evaluated, const JoinReach& faceReach) const {
     MoveEffect effect;
     // A node on the lattice's outer faces keeps its side: marching cubes would close the surface
     // around it in cells beyond the lattice, which are not meshed (a shape within a cell of the
@@ -301,7 +301,7 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
                     at(dv, inV);
                     const Vec3d far = at(du + dv, inFar);
                     if (inU && inV && !inFar && hiddenRuns(to, far, false, false, examined, evaluated) > 0 &&
-                        !bentPathJoins(to, far, false, evaluated) && !joinedNearby(to, far, false, evaluated)) {
+                        !bentPathJoins(to, far, false, evaluated) && !joinedNearby(to, far, false, evaluated, faceReach)) {
                         effect.keeps = false;
                         return effect;
                     }

@@ -84,31 +84,6 @@ public:
     std::size_t hiddenRuns(const Vec3d& a, const Vec3d& b, bool insideA, bool insideB, std::uint64_t& examined,
                            std::uint64_t& evaluated) const;
 
-    // What moving node c (on side `inside`, not moved) to `to` (onto the other side) does to its
-    // six edges, the other nodes where `nodes` puts them.
-    struct MoveEffect {
-        bool keeps = true;      // no edge hides a part it showed, no face turns ambiguous across a part,
-                                // no feature node loses its last edge to the other side, c is not on
-                                // the lattice's outer faces
-        std::size_t before = 0; // hidden runs on the six edges before the move
-        std::size_t after = 0;  // and after (bulges that bent paths go around count as before)
-        bool alone = true;      // no neighbour on c's side: c stands for a thin part itself
-    };
-    MoveEffect moveEffect(const openvdb::Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
-                          std::uint64_t& evaluated) const;
-
-    bool validNode(const openvdb::Coord& c) const {
-        return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&
-               c.y() <= mNodeHi.y() && c.z() <= mNodeHi.z();
-    }
-    Vec3d world(const openvdb::Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
-
-    // Is there a path from a to b on side `inside` that bows away from the segment by less than a
-    // cell? Then the ends lie in one piece of their side here, and a run of the other side on the
-    // segment between them is the other side's surface curving across it, not a part between
-    // them (a crack between them crosses every such path).
-    bool bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const;
-
     // How far joinedNearby looks: the box around both ends grown by `margin` cells, and the samples
     // per search step (`budget`) it may take before it gives up.
     struct JoinReach {
@@ -128,6 +103,31 @@ public:
     // times in 120, pairs of crossing plates 0.3-0.7 H thick got holes or handles 13 times in 30;
     // with this, 8 and 5 times (a budget of 50 left more, 200 no fewer).
     static constexpr JoinReach kJunctionReach{1.0, 100};
+
+    // What moving node c (on side `inside`, not moved) to `to` (onto the other side) does to its
+    // six edges, the other nodes where `nodes` puts them.
+    struct MoveEffect {
+        bool keeps = true;      // no edge hides a part it showed, no face turns ambiguous across a part,
+                                // no feature node loses its last edge to the other side, c is not on
+                                // the lattice's outer faces
+        std::size_t before = 0; // hidden runs on the six edges before the move
+        std::size_t after = 0;  // and after (bulges that bent paths go around count as before)
+        bool alone = true;      // no neighbour on c's side: c stands for a thin part itself
+    };
+    MoveEffect moveEffect(const openvdb::Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
+                          std::uint64_t& evaluated, const JoinReach& faceReach = kRimReach) const;
+
+    bool validNode(const openvdb::Coord& c) const {
+        return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&
+               c.y() <= mNodeHi.y() && c.z() <= mNodeHi.z();
+    }
+    Vec3d world(const openvdb::Coord& c) const { return mFrame.nodeWorld(Vec3i(c.x(), c.y(), c.z())); }
+
+    // Is there a path from a to b on side `inside` that bows away from the segment by less than a
+    // cell? Then the ends lie in one piece of their side here, and a run of the other side on the
+    // segment between them is the other side's surface curving across it, not a part between
+    // them (a crack between them crosses every such path).
+    bool bentPathJoins(const Vec3d& a, const Vec3d& b, bool inside, std::uint64_t& evaluated) const;
 
     // Do a and b lie in one piece of side `inside` within `reach` (by default, the side's)? A
     // search over samples at h/(2k) (26-connected: a crack at least h/k wide holds a connected

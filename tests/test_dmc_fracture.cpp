@@ -1,0 +1,90 @@
+// A solid fractured into pieces with gaps thinner than a cell between them, meshed as one volume
+// (an RBD fracture turned into one SDF, as a pipeline does before it meshes): DMC must keep the
+// pieces apart where three or more of them meet, not only where two do.
+#include "support/formula_text.h"
+
+#include "vdbsurf/dmc/mesher.h"
+#include "vdbsurf/field/expression_field.h"
+#include "vdbsurf/mesh/mesh_check.h"
+
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace vdbsurf;
+using test::num;
+
+namespace {
+
+constexpr double kH = 0.1;
+const Box3 kBox{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
+
+// A ball of radius 0.8 cut into the Voronoi cells of `seeds`, each cell shrunk by half the gap
+// `width` from every bisector: the pieces are convex, and neighbours lie `width` apart.
+std::string fracturedBall(const std::vector<Vec3d>& seeds, double width) {
+    std::string pieces;
+    for (std::size_t i = 0; i < seeds.size(); ++i) {
+        std::string cell = "sqrt(x^2+y^2+z^2)-0.8";
+        for (std::size_t j = 0; j < seeds.size(); ++j) {
+            if (j == i) continue;
+            const Vec3d n = normalized(seeds[j] - seeds[i]), mid = (seeds[i] + seeds[j]) * 0.5;
+            cell += ", " + test::dotWith(n, mid) + "+" + num(width / 2);
+        }
+        pieces += std::string(i ? ", " : "") + "max(" + cell + ")";
+    }
+    return "min(" + pieces + ")";
+}
+
+// `count` seeds in [-0.5, 0.5]^3, no two closer than 0.35 (every piece then reaches well into the
+// ball, and none is thinner than a cell).
+std::vector<Vec3d> randomSeeds(std::mt19937& rng, int count) {
+    std::uniform_real_distribution<double> u(-0.5, 0.5);
+    for (;;) {
+        std::vector<Vec3d> s;
+        for (int i = 0; i < count; ++i) s.emplace_back(u(rng), u(rng), u(rng));
+        bool apart = true;
+        for (int i = 0; i < count && apart; ++i)
+            for (int j = i + 1; j < count && apart; ++j) apart = length(s[std::size_t(i)] - s[std::size_t(j)]) > 0.35;
+        if (apart) return s;
+    }
+}
+
+// Of `count` random fractured balls of `pieces` pieces, gaps 0.2-0.8 H wide, how many DMC meshes at
+// kH as exactly their pieces, each without a handle. Every mesh must be closed and manifold.
+int fracturesInTheirPieces(unsigned seed, int pieces, int count) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> gap(0.2 * kH, 0.8 * kH);
+    int right = 0;
+    for (int trial = 0; trial < count; ++trial) {
+        const double width = gap(rng);
+        const std::string f = fracturedBall(randomSeeds(rng, pieces), width);
+        ExpressionField field(f, kBox);
+        MeshRequest req;
+        req.voxelSize = kH;
+        MeshReport report;
+        const Mesh m = meshField(field, req, report);
+        const MeshTopology t = checkTopology(m);
+        INFO("trial " << trial << ", gap " << width / kH << " H: " << f);
+        CHECK(t.closedManifoldOriented());
+        const long euler = long(m.points.size()) - long(t.edges) + long(m.polygonCount());
+        const bool ok = countComponents(m) == std::size_t(pieces) && euler == 2L * pieces;
+        right += ok;
+    }
+    return right;
+}
+
+} // namespace
+
+TEST_CASE("a ball fractured into Voronoi pieces with gaps under a cell wide comes out in its pieces") {
+    // Where three pieces meet, the node that must move into one gap often makes a face ambiguous
+    // towards a node already in the other gap, which the outside reaches only round the junction:
+    // refused, the gap stayed hidden and two pieces were one: 50 of 60 and 16 of 30 right before
+    // the last resort in hidden_edges.cpp, 57 and 22 with it. Known shortfall: gaps near where a
+    // junction meets the ball's surface, a cell holding a wedge of one piece between two gaps (its
+    // one node there may not leave), or two pieces' nodes meeting across a diagonal.
+    CHECK(fracturesInTheirPieces(20261207, 5, 60) >= 56);
+    CHECK(fracturesInTheirPieces(20261208, 8, 30) >= 21);
+}
