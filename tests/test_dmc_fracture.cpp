@@ -90,11 +90,11 @@ TEST_CASE("a ball fractured into Voronoi pieces with gaps under a cell wide come
     // Where three pieces meet, the node that must move into one gap often makes a face ambiguous
     // towards a node already in the other gap, which the outside reaches only round the junction:
     // refused, the gap stayed hidden and two pieces were one: 50 of 60 and 16 of 30 right before
-    // the last resort in hidden_edges.cpp, 57 and 22 with it. Known shortfall: gaps near where a
+    // the last resort in hidden_edges.cpp, 57 and 23 with it. Known shortfall: gaps near where a
     // junction meets the ball's surface, a cell holding a wedge of one piece between two gaps (its
     // one node there may not leave), or two pieces' nodes meeting across a diagonal.
     CHECK(fracturesInTheirPieces(20261207, 5, 60) >= 56);
-    CHECK(fracturesInTheirPieces(20261208, 8, 30) >= 21);
+    CHECK(fracturesInTheirPieces(20261208, 8, 30) >= 22);
 }
 
 TEST_CASE("a fractured ball as a level set five times finer than the lattice comes out in its pieces") {

@@ -181,7 +181,7 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
 }
 
 EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
-                                          std::uint64_t& evaluated, const JoinReach& faceReach) const {
+                                          std::uint64_t& evaluated, const JoinReach& outsideReach) const {
     MoveEffect effect;
     // A node on the lattice's outer faces keeps its side: marching cubes would close the surface
     // around it in cells beyond the lattice, which are not meshed (a shape within a cell of the
@@ -215,7 +215,8 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
         // edge where both ends lie in one piece of their side.
         const bool sameSideAfter = inside != nbInside;
         if (now > was || (sameSideAfter && now > 0)) {
-            if (!sameSideAfter || (!bentPathJoins(to, p, nbInside, evaluated) && !joinedNearby(to, p, nbInside, evaluated))) {
+            if (!sameSideAfter ||
+                (!bentPathJoins(to, p, nbInside, evaluated) && !joinedNearby(to, p, nbInside, evaluated, nbInside ? kJunctionReach : outsideReach))) {
                 effect.keeps = false;
                 return effect;
             }
@@ -301,7 +302,7 @@ EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec
                     at(dv, inV);
                     const Vec3d far = at(du + dv, inFar);
                     if (inU && inV && !inFar && hiddenRuns(to, far, false, false, examined, evaluated) > 0 &&
-                        !bentPathJoins(to, far, false, evaluated) && !joinedNearby(to, far, false, evaluated, faceReach)) {
+                        !bentPathJoins(to, far, false, evaluated) && !joinedNearby(to, far, false, evaluated, outsideReach)) {
                         effect.keeps = false;
                         return effect;
                     }

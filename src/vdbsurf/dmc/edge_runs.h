@@ -105,7 +105,9 @@ public:
     static constexpr JoinReach kJunctionReach{1.0, 100};
 
     // What moving node c (on side `inside`, not moved) to `to` (onto the other side) does to its
-    // six edges, the other nodes where `nodes` puts them.
+    // six edges, the other nodes where `nodes` puts them. `outsideReach`: how far the outside is
+    // searched for a path that makes harmless what the move joins across a part of the inside (an
+    // edge whose ends it puts both outside, a face it turns ambiguous).
     struct MoveEffect {
         bool keeps = true;      // no edge hides a part it showed, no face turns ambiguous across a part,
                                 // no feature node loses its last edge to the other side, c is not on
@@ -115,7 +117,7 @@ public:
         bool alone = true;      // no neighbour on c's side: c stands for a thin part itself
     };
     MoveEffect moveEffect(const openvdb::Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
-                          std::uint64_t& evaluated, const JoinReach& faceReach = kRimReach) const;
+                          std::uint64_t& evaluated, const JoinReach& outsideReach = kRimReach) const;
 
     bool validNode(const openvdb::Coord& c) const {
         return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&

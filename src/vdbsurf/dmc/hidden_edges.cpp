@@ -130,13 +130,13 @@ public:
         // and it is not the only node of a part itself.
         // A diagonal's own runs count too (the axis edges are among the six).
         const std::size_t own = e.diagonal() ? runs.size() - 1 : 0;
-        // `faceReach`: how far the outside is searched for a path that makes a face the move turns
-        // ambiguous harmless (EdgeRuns::moveEffect).
-        const EdgeRuns::JoinReach* faceReach = &EdgeRuns::kRimReach;
+        // How far the outside is searched for a path that makes harmless what a move joins across
+        // a part of the inside (EdgeRuns::moveEffect).
+        const EdgeRuns::JoinReach* outsideReach = &EdgeRuns::kRimReach;
         auto accepts = [&](const Coord& c, bool inside, const Vec3f& off, const Vec3d& far) {
             const Vec3d to = world(c) + Vec3d(off);
             const std::size_t ownAfter = e.diagonal() ? mRuns.hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
-            return ownAfter <= own && improves(c, inside, to, own - ownAfter, nodes, examined, evaluated, *faceReach);
+            return ownAfter <= own && improves(c, inside, to, own - ownAfter, nodes, examined, evaluated, *outsideReach);
         };
         auto firstAccepted = [&]() -> std::optional<Move> {
             bool reaches[2] = {false, false}; // does the end's Ω hold the run along the edge?
@@ -188,18 +188,20 @@ public:
         };
         if (const std::optional<Move> m = firstAccepted()) return m;
         // Between two inside nodes the run is a gap that joins them unless a node moves into it.
-        // Where every move would make a face ambiguous towards an outside node that the outside
-        // reaches only round a junction (cracks that cross or meet, a fractured solid's gaps
-        // where three pieces meet), the outside is searched as far as the inside is, as a last
-        // resort: the face then cuts a tunnel through the wedge of solid between the two gaps at
-        // worst, where refusing welds two pieces of the solid together. (As the first choice, the
-        // wider search took moves from the other end of the edge, which needs no ambiguous face,
-        // and cut such tunnels; everywhere in moveEffect, it slowed the thin search on noisy fog
-        // and gave random blob scenes handles.) Balls fractured into 5 Voronoi pieces, gaps
-        // 0.2-0.8 H wide: 22 of 120 not their pieces before, 8 after (8 pieces: 25 of 60, 13);
-        // pairs of crossing cracks 0.2-1 H wide: 11 of 60 wrong before, 5 after.
+        // Where every move would join what lies beyond the gap to another part of the outside
+        // across the solid (an edge's far end that the move puts on its side, a face it turns
+        // ambiguous) which the outside reaches only round a junction (cracks that cross or meet,
+        // a fractured solid's gaps where three pieces meet), the outside is searched as far as
+        // the inside is, as a last resort: the move then cuts a tunnel through the wedge of solid
+        // between the two gaps at worst, where refusing welds two pieces of the solid together.
+        // (As the first choice, the wider search took moves from the other end of the edge, which
+        // needed no such join, and cut tunnels; everywhere in moveEffect, it slowed the thin
+        // search on noisy fog and gave random blob scenes handles.) Balls fractured into 5 Voronoi
+        // pieces, gaps 0.2-0.8 H wide: 22 of 120 not their pieces before, 7 after (8 pieces: 25
+        // of 60, 12; as level sets of voxel H/5, 5 pieces: 10 of 60, 3); pairs of crossing
+        // cracks 0.2-1 H wide: 11 of 60 wrong before, 4 after.
         if (!(insideA && insideB)) return std::nullopt;
-        faceReach = &EdgeRuns::kJunctionReach;
+        outsideReach = &EdgeRuns::kJunctionReach;
         return firstAccepted();
     }
 
@@ -208,8 +210,8 @@ private:
     // its six edges, with the diagonal that asks (`gained` runs fewer there), hiding fewer runs in
     // all, and is c not alone on its side among its neighbours (then it is a thin part itself)?
     bool improves(const Coord& c, bool inside, const Vec3d& to, std::size_t gained, NodeStates& nodes, std::uint64_t& examined,
-                  std::uint64_t& evaluated, const EdgeRuns::JoinReach& faceReach) const {
-        const EdgeRuns::MoveEffect effect = mRuns.moveEffect(c, inside, to, nodes, examined, evaluated, faceReach);
+                  std::uint64_t& evaluated, const EdgeRuns::JoinReach& outsideReach) const {
+        const EdgeRuns::MoveEffect effect = mRuns.moveEffect(c, inside, to, nodes, examined, evaluated, outsideReach);
         return effect.keeps && !effect.alone && effect.after < effect.before + gained;
     }
 
