@@ -55,6 +55,20 @@ std::vector<Vec3d> randomSeeds(std::mt19937& rng, int count) {
     }
 }
 
+// Does DMC at kH mesh formula f as exactly `pieces` pieces, each without a handle, closed and manifold?
+bool inTheirPieces(const std::string& f, int pieces) {
+    const ExpressionField field(f, kBox);
+    MeshRequest req;
+    req.voxelSize = kH;
+    MeshReport report;
+    const Mesh m = meshField(field, req, report);
+    const MeshTopology t = checkTopology(m);
+    INFO(f);
+    CHECK(t.closedManifoldOriented());
+    const long euler = long(m.points.size()) - long(t.edges) + long(m.polygonCount());
+    return countComponents(m) == std::size_t(pieces) && euler == 2L * pieces;
+}
+
 // Of `count` random fractured balls of `pieces` pieces, gaps 0.2-0.8 H wide, how many DMC meshes at
 // kH as exactly their pieces, each without a handle: from the formula, or (`levelSetVoxel` > 0)
 // from a level set of that voxel size sampled from it. Every mesh must be closed and manifold.
@@ -101,4 +115,23 @@ TEST_CASE("a fractured ball as a level set five times finer than the lattice com
     // What a pipeline meshes: the fragments' union as one level set, gaps of 1-4 voxels, meshed
     // at 5 voxels a cell: 10 of 12 before the last resort in hidden_edges.cpp, 12 with it.
     CHECK(fracturesInTheirPieces(20261210, 8, 12, kH / 5) >= 11);
+}
+
+TEST_CASE("where a gap meets a junction, the node that must move into it may join it to the other gap round the junction") {
+    // Two balls of the random fractures above that welded two pieces (seeds and gap as drawn).
+    // First: both ends of the edge across the gap were refused for a face they turn ambiguous
+    // towards a node in the other gap (4de808c). Second: one end for that, the other because its
+    // far neighbour, in the other gap, would come to its side across the solid (b084cfa).
+    const std::vector<Vec3d> faceCase{{0.10594416567846243, 0.10680173364083789, 0.081204017112003091},
+                                      {-0.34161712974519443, -0.069330359708731359, -0.10646817979462864},
+                                      {0.22301208123746585, 0.49481956294974272, 0.44939547309324357},
+                                      {0.044177047429320826, -0.055145811274146417, -0.2317592583506719},
+                                      {-0.46407567060714239, -0.47255514290918099, -0.035106137902687906}};
+    const std::vector<Vec3d> edgeCase{{0.07159713451611105, 0.2789155374882366, -0.27021356072242264},
+                                      {-0.16520428665780595, -0.4097920292984252, -0.3132476607910042},
+                                      {-0.06294371031212453, -0.08895042799804032, 0.15677774725445048},
+                                      {0.3335816410990964, -0.16583302297296365, 0.42550360036965174},
+                                      {0.15314903527684698, -0.15516056176806725, -0.31522515768537074}};
+    CHECK(inTheirPieces(fracturedBall(faceCase, 0.038488187455348662), 5));
+    CHECK(inTheirPieces(fracturedBall(edgeCase, 0.037695588900326357), 5));
 }
