@@ -199,7 +199,7 @@ public:
         // search on noisy fog and gave random blob scenes handles.) Balls fractured into 5 Voronoi
         // pieces, gaps 0.2-0.8 H wide: 22 of 120 not their pieces before, 7 after (8 pieces: 25
         // of 60, 12; as level sets of voxel H/5, 5 pieces: 10 of 60, 3; a turned cube, 5
-        // pieces: 16 of 30, 5); pairs of crossing cracks 0.2-1 H wide: 11 of 60 wrong before, 4.
+        // pieces: 36 of 60, 18); pairs of crossing cracks 0.2-1 H wide: 11 of 60 wrong before, 4.
         if (!(insideA && insideB)) return std::nullopt;
         outsideReach = &EdgeRuns::kJunctionReach;
         return firstAccepted();
