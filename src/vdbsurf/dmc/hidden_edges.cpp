@@ -130,15 +130,14 @@ public:
         // and it is not the only node of a part itself.
         // A diagonal's own runs count too (the axis edges are among the six).
         const std::size_t own = e.diagonal() ? runs.size() - 1 : 0;
-        // How far the outside is searched for a path that makes harmless what a move joins across
-        // a part of the inside (EdgeRuns::moveEffect).
-        const EdgeRuns::JoinReach* outsideReach = &EdgeRuns::kRimReach;
-        auto accepts = [&](const Coord& c, bool inside, const Vec3f& off, const Vec3d& far) {
-            const Vec3d to = world(c) + Vec3d(off);
-            const std::size_t ownAfter = e.diagonal() ? mRuns.hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
-            return ownAfter <= own && improves(c, inside, to, own - ownAfter, nodes, examined, evaluated, *outsideReach);
-        };
-        auto firstAccepted = [&]() -> std::optional<Move> {
+        // `outsideReach`: how far the outside is searched for a path that makes harmless what a
+        // move joins across a part of the inside (EdgeRuns::moveEffect).
+        auto firstAccepted = [&](const EdgeRuns::JoinReach& outsideReach) -> std::optional<Move> {
+            auto accepts = [&](const Coord& c, bool inside, const Vec3f& off, const Vec3d& far) {
+                const Vec3d to = world(c) + Vec3d(off);
+                const std::size_t ownAfter = e.diagonal() ? mRuns.hiddenRuns(to, far, !inside, false, examined, evaluated) : 0;
+                return ownAfter <= own && improves(c, inside, to, own - ownAfter, nodes, examined, evaluated, outsideReach);
+            };
             bool reaches[2] = {false, false}; // does the end's Ω hold the run along the edge?
             for (const bool fromA : {true, false}) {
                 if (fromA ? movedA : movedB) continue;
@@ -186,7 +185,7 @@ public:
             }
             return std::nullopt;
         };
-        if (const std::optional<Move> m = firstAccepted()) return m;
+        if (const std::optional<Move> m = firstAccepted(EdgeRuns::kRimReach)) return m;
         // Between two inside nodes the run is a gap that joins them unless a node moves into it.
         // Where every move would join what lies beyond the gap to another part of the outside
         // across the solid (an edge's far end that the move puts on its side, a face it turns
@@ -201,8 +200,7 @@ public:
         // of 60, 12; as level sets of voxel H/5, 5 pieces: 10 of 60, 3; a turned cube, 5
         // pieces: 36 of 60, 18); pairs of crossing cracks 0.2-1 H wide: 11 of 60 wrong before, 4.
         if (!(insideA && insideB)) return std::nullopt;
-        outsideReach = &EdgeRuns::kJunctionReach;
-        return firstAccepted();
+        return firstAccepted(EdgeRuns::kJunctionReach);
     }
 
 private:

@@ -293,17 +293,56 @@ bool stillKeeps(const EdgeRuns& edgeRuns, const Field& field, const LatticeFrame
     return edgeRuns.moveEffect(n, isInside(rest, iso, field.inside()), to, nodes, examined, samples).keeps;
 }
 
+// The side of node c now: its value at rest, then where the deformation put it.
+bool nodeInsideNow(const Field& field, const LatticeFrame& frame, double iso, NodeStates& nodes, const Coord& c) {
+    double v = 0;
+    field.sampleNodes(frame, {c.x(), c.y(), c.z()}, {1, 1, 1}, nullptr, &v);
+    return nodes.inside(c, isInside(v, iso, field.inside()));
+}
+
+// Nodes of `moved` (the first phase's) that went into a part of the inside and stand alone on
+// their side among their six neighbours, where the part reaches a node of the rest that is not
+// alone (a path inside within a cell of both, EdgeRuns::joinedNearby): the part is the tip of
+// a larger one which the lattice cannot join to it, since every node between would join it
+// across a gap too (a wedge of a fractured piece where two gaps and the surface meet). Decided
+// on one state.
+std::vector<Coord> cutOffTips(const EdgeRuns& edgeRuns, const Field& field, const LatticeFrame& frame, double iso,
+                              const std::vector<Coord>& moved, const LatticeDeformation& deformation, std::uint64_t& samples) {
+    NodeStates nodes(deformation);
+    auto insideNow = [&](const Coord& c) { return nodeInsideNow(field, frame, iso, nodes, c); };
+    auto where = [&](const Coord& c) {
+        openvdb::Vec3f o(0.0f);
+        nodes.offsets.probeValue(c, o);
+        return frame.nodeWorld(Vec3i(c.x(), c.y(), c.z())) + Vec3d(o.x(), o.y(), o.z());
+    };
+    auto alone = [&](const Coord& c) {
+        for (int k = 0; k < 6; ++k)
+            if (insideNow(c + axisStep(k / 2, k % 2 ? 1 : -1))) return false;
+        return true;
+    };
+    std::vector<Coord> tips;
+    for (const Coord& c : moved) {
+        if (!nodes.offsets.isValueOn(c) || !insideNow(c) || !alone(c)) continue;
+        bool joined = false;
+        for (int z = -1; z <= 1 && !joined; ++z)
+            for (int y = -1; y <= 1 && !joined; ++y)
+                for (int x = -1; x <= 1 && !joined; ++x) {
+                    const Coord n = c.offsetBy(x, y, z);
+                    if (n == c || !insideNow(n) || alone(n)) continue;
+                    joined = edgeRuns.joinedNearby(where(c), where(n), true, samples);
+                }
+        if (joined) tips.push_back(c);
+    }
+    return tips;
+}
+
 } // namespace
 
 std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& joinNodes,
                                     LatticeDeformation& deformation) {
     constexpr std::size_t kLargestPiece = 27; // a larger piece made of joins is taken to be a part
     NodeStates nodes(deformation);
-    auto insideNow = [&](const Coord& c) {
-        double v = 0;
-        field.sampleNodes(frame, {c.x(), c.y(), c.z()}, {1, 1, 1}, nullptr, &v);
-        return nodes.inside(c, isInside(v, iso, field.inside()));
-    };
+    auto insideNow = [&](const Coord& c) { return nodeInsideNow(field, frame, iso, nodes, c); };
     std::vector<Coord> joins;
     for (const Vec3i& n : joinNodes) joins.emplace_back(n.x, n.y, n.z);
     std::sort(joins.begin(), joins.end());
@@ -362,50 +401,6 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
     }
     return restored;
 }
-
-namespace {
-
-// Nodes of `moved` (the first phase's) that went into a part of the inside and stand alone on
-// their side among their six neighbours, where the part reaches a node of the rest that is not
-// alone (a path inside within a cell of both, EdgeRuns::joinedNearby): the part is the tip of
-// a larger one which the lattice cannot join to it, since every node between would join it
-// across a gap too (a wedge of a fractured piece where two gaps and the surface meet). Decided
-// on one state.
-std::vector<Coord> cutOffTips(const EdgeRuns& edgeRuns, const Field& field, const LatticeFrame& frame, double iso,
-                              const std::vector<Coord>& moved, const LatticeDeformation& deformation, std::uint64_t& samples) {
-    NodeStates nodes(deformation);
-    auto insideNow = [&](const Coord& c) {
-        double v = 0;
-        field.sampleNodes(frame, {c.x(), c.y(), c.z()}, {1, 1, 1}, nullptr, &v);
-        return nodes.inside(c, isInside(v, iso, field.inside()));
-    };
-    auto where = [&](const Coord& c) {
-        openvdb::Vec3f o(0.0f);
-        nodes.offsets.probeValue(c, o);
-        return frame.nodeWorld(Vec3i(c.x(), c.y(), c.z())) + Vec3d(o.x(), o.y(), o.z());
-    };
-    auto alone = [&](const Coord& c) {
-        for (int k = 0; k < 6; ++k)
-            if (insideNow(c + axisStep(k / 2, k % 2 ? 1 : -1))) return false;
-        return true;
-    };
-    std::vector<Coord> tips;
-    for (const Coord& c : moved) {
-        if (!nodes.offsets.isValueOn(c) || !insideNow(c) || !alone(c)) continue;
-        bool joined = false;
-        for (int z = -1; z <= 1 && !joined; ++z)
-            for (int y = -1; y <= 1 && !joined; ++y)
-                for (int x = -1; x <= 1 && !joined; ++x) {
-                    const Coord n = c.offsetBy(x, y, z);
-                    if (n == c || !insideNow(n) || alone(n)) continue;
-                    joined = edgeRuns.joinedNearby(where(c), where(n), true, samples);
-                }
-        if (joined) tips.push_back(c);
-    }
-    return tips;
-}
-
-} // namespace
 
 void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
                 ThinSearchStats* stats, std::vector<Vec3i>* crowded) {
