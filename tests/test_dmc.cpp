@@ -33,9 +33,11 @@
 
 using namespace vdbsurf;
 using test::dotWith;
+using test::eulerCharacteristic;
 using test::eulerRotation;
 using test::inFrame;
 using test::num;
+using test::piecesWithoutHandles;
 using test::Rotation;
 
 namespace {
@@ -297,11 +299,6 @@ TEST_CASE("a rod through a lattice face whose corners all lie outside it stays i
 }
 
 namespace {
-
-long eulerCharacteristic(const Mesh& m) { return long(m.points.size()) - long(checkTopology(m).edges) + long(m.polygonCount()); }
-
-// Is the closed mesh m `pieces` pieces, none with a handle (Euler characteristic 2 each)?
-bool piecesWithoutHandles(const Mesh& m, std::size_t pieces) { return countComponents(m) == pieces && eulerCharacteristic(m) == 2 * long(pieces); }
 
 // The union of two shapes that cross: whether DMC at kH gives one closed piece without a handle.
 bool unionWhole(const std::string& shapeA, const std::string& shapeB) {

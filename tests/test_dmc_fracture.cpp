@@ -2,6 +2,7 @@
 // (an RBD fracture turned into one SDF, as a pipeline does before it meshes): DMC must keep the
 // pieces apart where three or more of them meet, not only where two do.
 #include "support/formula_text.h"
+#include "support/test_support.h"
 
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
@@ -12,7 +13,6 @@
 #include <catch2/catch.hpp>
 
 #include <cmath>
-#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -67,18 +67,21 @@ std::vector<Vec3d> randomSeeds(std::mt19937& rng, int count) {
     }
 }
 
-// Does DMC at kH mesh formula f as exactly `pieces` pieces, each without a handle, closed and manifold?
-bool inTheirPieces(const std::string& f, int pieces) {
-    const ExpressionField field(f, kBox);
+// Does DMC at kH mesh the field as exactly `pieces` pieces, each without a handle? The mesh must be
+// closed and manifold.
+bool meshedInPieces(const Field& field, std::size_t pieces) {
     MeshRequest req;
     req.voxelSize = kH;
     MeshReport report;
     const Mesh m = meshField(field, req, report);
-    const MeshTopology t = checkTopology(m);
+    CHECK(checkTopology(m).closedManifoldOriented());
+    return test::piecesWithoutHandles(m, pieces);
+}
+
+// The same for formula f.
+bool inTheirPieces(const std::string& f, std::size_t pieces) {
     INFO(f);
-    CHECK(t.closedManifoldOriented());
-    const long euler = long(m.points.size()) - long(t.edges) + long(m.polygonCount());
-    return countComponents(m) == std::size_t(pieces) && euler == 2L * pieces;
+    return meshedInPieces(ExpressionField(f, kBox), pieces);
 }
 
 // Of `count` random fractured balls of `pieces` pieces, gaps 0.2-0.8 H wide, how many DMC meshes at
@@ -99,20 +102,13 @@ int fracturesInTheirPieces(unsigned seed, int pieces, int count, double levelSet
             f = fracturedBall(randomSeeds(rng, pieces), width);
         }
         const ExpressionField formula(f, kBox);
-        std::unique_ptr<GridField> grid;
-        if (levelSetVoxel > 0)
-            grid = std::make_unique<GridField>(
-                levelSetFromDistance([&](const Vec3d& p) { return formula.value(p); }, kBox, levelSetVoxel), "fractured");
-        MeshRequest req;
-        req.voxelSize = kH;
-        MeshReport report;
-        const Mesh m = meshField(grid ? static_cast<const Field&>(*grid) : formula, req, report);
-        const MeshTopology t = checkTopology(m);
         INFO("trial " << trial << ", gap " << width / kH << " H: " << f);
-        CHECK(t.closedManifoldOriented());
-        const long euler = long(m.points.size()) - long(t.edges) + long(m.polygonCount());
-        const bool ok = countComponents(m) == std::size_t(pieces) && euler == 2L * pieces;
-        right += ok;
+        if (levelSetVoxel > 0)
+            right += meshedInPieces(GridField(levelSetFromDistance([&](const Vec3d& p) { return formula.value(p); }, kBox, levelSetVoxel),
+                                              "fractured"),
+                                    std::size_t(pieces));
+        else
+            right += meshedInPieces(formula, std::size_t(pieces));
     }
     return right;
 }

@@ -1,5 +1,6 @@
 #include "support/test_support.h"
 
+#include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/vdb/level_set_from_distance.h"
 #include "vdbsurf/vdb/vdb_file.h"
 
@@ -131,5 +132,9 @@ std::string sharedData(const std::string& relative) {
 }
 
 void writeGrids(const std::string& path, const std::vector<GridBasePtr>& grids) { writeVdbFile(path, grids); }
+
+long eulerCharacteristic(const Mesh& m) { return long(m.points.size()) - long(checkTopology(m).edges) + long(m.polygonCount()); }
+
+bool piecesWithoutHandles(const Mesh& m, std::size_t pieces) { return countComponents(m) == pieces && eulerCharacteristic(m) == 2 * long(pieces); }
 
 } // namespace vdbsurf::test

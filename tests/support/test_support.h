@@ -4,6 +4,7 @@
 #include "vdbsurf/mesh/mesh.h"
 #include "vdbsurf/vdb/openvdb_fwd.h"
 
+#include <cstddef>
 #include <functional>
 #include <string>
 #include <vector>
@@ -50,5 +51,10 @@ bool fileExists(const std::string& path);
 std::string sharedData(const std::string& relative);
 
 void writeGrids(const std::string& path, const std::vector<GridBasePtr>& grids);
+
+// The Euler characteristic V - E + F of a mesh.
+long eulerCharacteristic(const Mesh& m);
+// Is the closed mesh m `pieces` pieces, none with a handle (Euler characteristic 2 each)?
+bool piecesWithoutHandles(const Mesh& m, std::size_t pieces);
 
 } // namespace vdbsurf::test
