@@ -7,6 +7,7 @@
 #include "vdbsurf/density/scene_json.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
+#include "vdbsurf/mesh/fan_triangles.h"
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_io.h"
 #include "vdbsurf/reeb/bspline.h"
@@ -290,6 +291,50 @@ TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]")
     folded.addPolygon({0, 8, 2, 1});
     for (std::size_t f = 1; f < cube.polygonCount(); ++f) folded.addPolygon(cube.polygon(f), cube.polygonSize(f));
     CHECK_THROWS_WITH(buildClosedSurface(folded, "fold.obj"), Catch::Contains("fold.obj") && Catch::Contains("vertex 8 is a fold"));
+}
+
+TEST_CASE("A quad whose opposite corners share an edge elsewhere is fanned across its other diagonal", "[reeb]") {
+    // Every edge of the fanned mesh, with how many triangles use it.
+    auto edgeUses = [](const Mesh& tris) {
+        std::map<std::uint64_t, int> uses;
+        for (std::size_t p = 0; p < tris.polygonCount(); ++p)
+            for (std::uint32_t k = 0; k < 3; ++k) ++uses[undirectedEdgeKey(tris.polygon(p)[k], tris.polygon(p)[(k + 1) % 3])];
+        return uses;
+    };
+    // A closed manifold sphere of six vertices: the quad [0, 1, 2, 3], and six triangles round
+    // 4 and 5 on the other side, two of which share the edge 0-2 between the quad's opposite
+    // corners (edge collapses in a thin part left such a pinch in a DMC mesh of random noise).
+    // Fanned from vertex 0, the quad put that edge in four triangles and patches refused the mesh
+    // as non-manifold.
+    Mesh pinch;
+    pinch.points = {Vec3f(0, 0, 0), Vec3f(1, 0, 0.2f), Vec3f(1, 1, 0), Vec3f(0, 1, 0.2f), Vec3f(0.8f, 0.2f, -0.6f), Vec3f(0.2f, 0.8f, -0.6f)};
+    pinch.addPolygon({0, 1, 2, 3});
+    for (const auto& t : std::vector<std::array<std::uint32_t, 3>>{{1, 0, 4}, {2, 1, 4}, {0, 2, 4}, {3, 2, 5}, {0, 3, 5}, {2, 0, 5}})
+        pinch.addPolygon({t[0], t[1], t[2]});
+    std::vector<std::uint32_t> polygonOf;
+    const Mesh tris = fanIntoTriangles(pinch, &polygonOf);
+    REQUIRE(tris.polygonCount() == 8);
+    CHECK(polygonOf == std::vector<std::uint32_t>{0, 0, 1, 2, 3, 4, 5, 6});
+    CHECK(std::vector<std::uint32_t>(tris.indices.begin(), tris.indices.begin() + 6) == std::vector<std::uint32_t>{1, 2, 3, 1, 3, 0});
+    const std::map<std::uint64_t, int> uses = edgeUses(tris);
+    CHECK(uses.size() == 12);
+    for (const auto& [edge, n] : uses) CHECK(n == 2);
+    const ClosedSurface surface = buildClosedSurface(pinch, "pinch.obj");
+    CHECK(surface.vertex.size() == 24);
+    // A diagonal fanned before counts as an edge too: two quads over the same four vertices.
+    Mesh pillow;
+    pillow.points = {Vec3f(0, 0, 0), Vec3f(1, 0, 0.5f), Vec3f(1, 1, 0), Vec3f(0, 1, 0.5f)};
+    pillow.addPolygon({0, 1, 2, 3});
+    pillow.addPolygon({2, 1, 0, 3});
+    for (const auto& [edge, n] : edgeUses(fanIntoTriangles(pillow))) CHECK(n == 2);
+    // Without such pinches every polygon is fanned from its first corner, as before.
+    const Mesh cube = test::cubeMesh();
+    const Mesh cubeTris = fanIntoTriangles(cube);
+    REQUIRE(cubeTris.polygonCount() == 2 * cube.polygonCount());
+    for (std::size_t p = 0; p < cube.polygonCount(); ++p) {
+        CHECK(cubeTris.polygon(2 * p)[0] == cube.polygon(p)[0]);
+        CHECK(cubeTris.polygon(2 * p + 1)[0] == cube.polygon(p)[0]);
+    }
 }
 
 TEST_CASE("A mesh stored a point per polygon corner is merged where points coincide and gives the same patches", "[reeb][patches]") {

@@ -2,6 +2,7 @@
 
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/union_find.h"
+#include "vdbsurf/mesh/fan_triangles.h"
 #include "vdbsurf/mesh/mesh_folds.h"
 #include "vdbsurf/mesh/vertex_fans.h"
 
@@ -40,16 +41,8 @@ ClosedSurface buildFrom(const Mesh& mesh, const std::string& inputName) {
                                    (folds.size() > 1 ? " (and " + std::to_string(folds.size() - 1) + " more)" : std::string()) +
                                    "; the Reeb graph needs a closed manifold surface");
     // Fan every polygon into triangles first, so the fan analysis sees the triangles' edges.
-    Mesh tris;
     std::vector<std::uint32_t> polygonOf;
-    tris.points = mesh.points;
-    for (std::size_t p = 0; p < mesh.polygonCount(); ++p) {
-        const std::uint32_t* vs = mesh.polygon(p);
-        for (std::uint32_t k = 1; k + 1 < mesh.polygonSize(p); ++k) {
-            tris.addPolygon({vs[0], vs[k], vs[k + 1]});
-            polygonOf.push_back(std::uint32_t(p));
-        }
-    }
+    const Mesh tris = fanIntoTriangles(mesh, &polygonOf);
     std::vector<std::uint32_t> cornerVertex, partner;
     const std::vector<std::uint32_t> copies = splitVertexFans(tris, inputName, cornerVertex, partner);
     if (!copies.empty())
