@@ -258,6 +258,48 @@ TEST_CASE("Patches of a blobby scene", "[reeb][patches]") {
     checkJoins(r);
 }
 
+TEST_CASE("A unit end through a saddle of three lobes follows the contour so the preview stays manifold there", "[reeb][patches]") {
+    // A gyroid sheet in a ball, genus 8 (found among random meshes): a saddle of multiplicity 2
+    // whose three lobes the one unit below and the one unit above each pass in one loop. Taken in
+    // index order, the unit above paired each lobe's end with the start the unit below pairs it
+    // with, and their patches met at the saddle in three fans (a non-manifold preview vertex).
+    const std::string gyroid = "max(abs(sin(4.85574*x+4.5618)*cos(4.85574*y)+sin(4.85574*y+0.434688)*cos(4.85574*z)+"
+                               "sin(4.85574*z+0.194331)*cos(4.85574*x))-0.0613163, sqrt(x^2+y^2+z^2)-0.843363)";
+    const Mesh m = dmcMesh(gyroid, 1.1, 0.0661059);
+    REQUIRE(checkTopology(m).closedManifoldOriented());
+    const PatchResult r = patchesOf(m, Vec3d(0, 0, 1));
+    std::size_t longEnds = 0;
+    std::vector<std::uint32_t> saddles; // the nodes such ends pass through
+    for (const Unit& u : r.graph.units) {
+        longEnds += (u.bottomLobes.size() >= 3) + (u.topLobes.size() >= 3);
+        if (u.bottomLobes.size() >= 3) saddles.push_back(u.lower);
+        if (u.topLobes.size() >= 3) saddles.push_back(u.upper);
+    }
+    REQUIRE(longEnds >= 2);
+    // The preview turns once round such a saddle (its first points are the graph's nodes), seen
+    // along the axis, the surface's normal there: with the lobes' ends paired across the other
+    // side's sectors the fans folded back (no turn at all) though the mesh stayed manifold.
+    for (const std::uint32_t saddle : saddles) {
+        const Vec3d s(r.preview.points[saddle]);
+        double turn = 0;
+        for (std::size_t t = 0; t < r.preview.polygonCount(); ++t) {
+            const std::uint32_t* v = r.preview.polygon(t);
+            for (int k = 0; k < 3; ++k) {
+                if (v[k] != saddle) continue;
+                const Vec3d a = Vec3d(r.preview.points[v[(k + 1) % 3]]) - s, b = Vec3d(r.preview.points[v[(k + 2) % 3]]) - s;
+                turn += std::atan2(a.x * b.y - a.y * b.x, a.x * b.x + a.y * b.y);
+            }
+        }
+        INFO("saddle node " << saddle);
+        CHECK(std::abs(turn) / (2 * M_PI) == Approx(1.0).margin(1e-6));
+    }
+    const MeshTopology preview = checkTopology(r.preview);
+    CHECK(preview.closedManifoldOriented());
+    CHECK(preview.unusedVertices == 0);
+    CHECK(long(r.preview.points.size()) - long(preview.edges) + long(r.preview.polygonCount()) == r.graph.eulerCharacteristic);
+    checkJoins(r);
+}
+
 TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]") {
     CHECK_THROWS_WITH(buildClosedSurface(test::openCubeMesh(), "open.obj"), Catch::Contains("open.obj") && Catch::Contains("open"));
     Mesh bowtie = test::octahedronMesh();

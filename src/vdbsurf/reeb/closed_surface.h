@@ -36,7 +36,7 @@ struct ClosedSurface {
     double meanEdgeLength() const;
 };
 
-// Polygons are fanned from their first corner. Throws Error naming inputName for an open
+// Polygons are fanned into triangles as mesh/fan_triangles.h does. Throws Error naming inputName for an open
 // surface (naming a boundary edge), an edge of three or more polygons or inconsistent
 // orientation, a non-manifold vertex (two fans meeting at a point), a polygon with fewer than
 // three corners or a repeated vertex, a non-finite point, or an empty mesh. Input that fails

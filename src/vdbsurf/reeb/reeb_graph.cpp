@@ -87,6 +87,83 @@ struct Pieces {
     std::size_t count() const { return triangle.size(); }
 };
 
+// A unit's end at a saddle is one loop through the saddle, once per lobe: the contour just
+// beside the saddle's level, which follows each lobe and, at the saddle, turns into the lobe
+// that starts across the sector of the unit's side next to where the lobe ended. Around the
+// saddle (in `around` order, the link running a, b, ... for triangle (s, a, b)) the lobes' ends
+// alternate: a start where the link falls from above to below, an end where it climbs back; so
+// the sector after a lobe's end lies above and leads to the start after it, the sector before
+// the end lies below and leads to the start before it. With two lobes either order is that loop;
+// with three or more (a saddle of multiplicity 2 or more) the lobes taken in index order could
+// pair a lobe's end with the wrong start on one side, and the patches of the units above and
+// below then met at the saddle in separate fans (a non-manifold preview vertex on a gyroid).
+// Orders each unit's bottomLobes and topLobes so; a saddle whose ends do not alternate keeps
+// the index order.
+void orderLobesAlongContours(const ClosedSurface& s, ReebGraph& g, const std::vector<std::uint32_t>& startTriangle,
+                             const std::vector<std::uint32_t>& endTriangle) {
+    const std::uint32_t none = ~0u;
+    std::vector<std::uint32_t> nextAbove(g.lobes.size(), none), nextBelow(g.lobes.size(), none);
+    std::vector<std::uint32_t> lobesAt(g.nodes.size(), 0);
+    for (const Lobe& lobe : g.lobes) ++lobesAt[lobe.node];
+    // Lobes of each saddle by start and end triangle.
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> starts, ends; // (triangle, lobe)
+    for (std::uint32_t li = 0; li < g.lobes.size(); ++li) {
+        starts.push_back({startTriangle[li], li});
+        ends.push_back({endTriangle[li], li});
+    }
+    std::sort(starts.begin(), starts.end());
+    std::sort(ends.begin(), ends.end());
+    auto lobeIn = [](const std::vector<std::pair<std::uint32_t, std::uint32_t>>& byTriangle, std::uint32_t t, std::uint32_t node,
+                     const ReebGraph& graph) {
+        for (auto it = std::lower_bound(byTriangle.begin(), byTriangle.end(), std::make_pair(t, 0u)); it != byTriangle.end() && it->first == t; ++it)
+            if (graph.lobes[it->second].node == node) return it->second;
+        return ~0u;
+    };
+    for (std::uint32_t ni = 0; ni < g.nodes.size(); ++ni) {
+        if (lobesAt[ni] < 3) continue;
+        // The lobes' starts (+1 + lobe) and ends (-1 - lobe) round the saddle, in order.
+        std::vector<std::int64_t> events;
+        const std::uint32_t first = s.vertexCorner[g.nodes[ni].vertex];
+        std::uint32_t c = first;
+        do {
+            const std::uint32_t t = c / 3;
+            if (const std::uint32_t l = lobeIn(starts, t, ni, g); l != none) events.push_back(std::int64_t(l) + 1);
+            if (const std::uint32_t l = lobeIn(ends, t, ni, g); l != none) events.push_back(-std::int64_t(l) - 1);
+            c = s.around(c);
+        } while (c != first);
+        const std::size_t n = events.size();
+        bool alternate = n == 2 * std::size_t(lobesAt[ni]);
+        for (std::size_t i = 0; i < n && alternate; ++i) alternate = (events[i] > 0) != (events[(i + 1) % n] > 0);
+        if (!alternate) continue;
+        for (std::size_t i = 0; i < n; ++i) {
+            if (events[i] > 0) continue;
+            const std::uint32_t ended = std::uint32_t(-events[i] - 1);
+            nextAbove[ended] = std::uint32_t(events[(i + 1) % n] - 1);
+            nextBelow[ended] = std::uint32_t(events[(i + n - 1) % n] - 1);
+        }
+    }
+    // Each end list as the loop the successors make, from its first lobe; unchanged unless they
+    // make one loop through all of it.
+    auto order = [&](std::vector<std::uint32_t>& lobes, const std::vector<std::uint32_t>& next) {
+        if (lobes.size() < 3) return;
+        std::vector<std::uint32_t> loop{lobes.front()};
+        while (loop.size() <= lobes.size()) {
+            const std::uint32_t l = next[loop.back()];
+            if (l == none || l == loop.front()) break;
+            loop.push_back(l);
+        }
+        if (loop.size() != lobes.size() || next[loop.back()] != loop.front()) return;
+        std::vector<std::uint32_t> sortedLoop(loop), sortedLobes(lobes);
+        std::sort(sortedLoop.begin(), sortedLoop.end());
+        std::sort(sortedLobes.begin(), sortedLobes.end());
+        if (sortedLoop == sortedLobes) lobes = std::move(loop);
+    };
+    for (Unit& unit : g.units) {
+        order(unit.bottomLobes, nextAbove);
+        order(unit.topLobes, nextBelow);
+    }
+}
+
 } // namespace
 
 ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
@@ -109,7 +186,7 @@ ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
     // contour runs from where the boundary (in corner order) climbs through the level to where it
     // falls through it; at the saddle s, a triangle (s, a, b) with a above and b below starts one.
     std::vector<Crossing> crossings;
-    std::vector<std::uint32_t> lobeStartTriangle, lobeFirstCrossing;
+    std::vector<std::uint32_t> lobeStartTriangle, lobeEndTriangle, lobeFirstCrossing;
     for (std::uint32_t ni = 0; ni < g.nodes.size(); ++ni) {
         if (g.nodes[ni].type != CriticalType::Saddle) continue;
         const std::uint32_t sv = g.nodes[ni].vertex, level = g.nodes[ni].rank;
@@ -132,7 +209,10 @@ ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
                     lobe.points.push_back(p);
                     const std::uint32_t o = s.opposite[cc]; // vb -> va: climbing in the next triangle
                     const std::uint32_t d = s.vertex[ClosedSurface::prev(o)];
-                    if (d == sv) break;
+                    if (d == sv) {
+                        lobeEndTriangle.push_back(o / 3);
+                        break;
+                    }
                     cc = f.rank[d] > level ? ClosedSurface::prev(o) : ClosedSurface::next(o);
                 }
                 lobe.points.push_back(s.points[sv]);
@@ -282,6 +362,7 @@ ReebGraph buildReebGraph(const ClosedSurface& s, const HeightFunction& f) {
         g.units[lobe.unitAbove].bottomLobes.push_back(li);
         g.units[lobe.unitBelow].topLobes.push_back(li);
     }
+    orderLobesAlongContours(s, g, lobeStartTriangle, lobeEndTriangle);
     return g;
 }
 

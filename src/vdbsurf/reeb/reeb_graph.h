@@ -58,7 +58,10 @@ struct ReebGraph {
     std::vector<Lobe> lobes;
     SimplifyReport simplified;
     std::size_t minima = 0, maxima = 0, saddles = 0; // saddles counted with multiplicity
-    std::size_t loops() const { return units.size() + components - nodes.size(); } // = genus of the surface
+    // The graph's independent loops: the genus of the surface, less the handles a saddle of
+    // multiplicity 2 or more keeps within its own level (one arc below and one above it, on a
+    // gyroid's mesh: one handle the graph does not show).
+    std::size_t loops() const { return units.size() + components - nodes.size(); }
 };
 
 // Classifies every vertex in the order of f. Throws std::logic_error when minima - saddles +
