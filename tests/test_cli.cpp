@@ -285,12 +285,39 @@ TEST_CASE("a terrain level set, its band open at the sides of its box, is meshed
     CHECK(offSheet < 0.005 * double(m.points.size()));
     CHECK(m.points.size() > 10000); // the 2 x 2 sheet at 0.02: ~10,000 voxels' worth
     CHECK(r.output.find("inactive voxels") != std::string::npos);
+    CHECK(r.output.find("edge of the lattice") != std::string::npos);
     // A closed level set has data in every cell with surface: nothing is left out.
     writeSphereFile(dir.path("sphere.vdb"));
     const auto s = runVdbsurf({"mesh", dir.path("sphere.vdb"), "-o", dir.path("sphere.obj")});
     INFO(s.output);
     REQUIRE(s.exitCode == 0);
     CHECK(s.output.find("inactive voxels") == std::string::npos);
+    CHECK(s.output.find("edge of the lattice") == std::string::npos);
+}
+
+TEST_CASE("mesh says where a formula's shape passes its box and the mesh is open there: one edge per cell face") {
+    // A ball of radius 1.2 in the box [-1, 1]^3 is cut by the box's faces; the mesh is open along
+    // them. Said, with the count, rather than left for the user to find; a ball inside says nothing.
+    test::TempDir dir;
+    auto ball = [&](const std::string& radius, const std::string& method, const std::string& out) {
+        return runVdbsurf({"mesh", "--expr", "sqrt(x^2+y^2+z^2)-" + radius, "--bbox", "-1,-1,-1,1,1,1", "--voxel-size", "0.1", "--method", method,
+                           "-o", dir.path(out), "--stats", dir.path(out + ".json")});
+    };
+    for (const std::string method : {"dmc", "mc"}) {
+        const auto cut = ball("1.2", method, "cut.obj"), whole = ball("0.9", method, "whole.obj");
+        INFO(method << ": " << cut.output << whole.output);
+        REQUIRE(cut.exitCode == 0);
+        REQUIRE(whole.exitCode == 0);
+        const MeshTopology t = checkTopology(readMesh(dir.path("cut.obj")));
+        REQUIRE(t.boundaryEdges > 0);
+        const auto j = nlohmann::json::parse(test::readFile(dir.path("cut.obj.json")));
+        CHECK(j["lattice"]["faces_open_at_lattice_edge"].get<std::size_t>() == t.boundaryEdges);
+        CHECK(cut.output.find("through " + std::to_string(t.boundaryEdges) + " cell faces: the mesh is open there; widen --bbox") !=
+              std::string::npos);
+        CHECK(checkTopology(readMesh(dir.path("whole.obj"))).closedManifoldOriented());
+        CHECK(whole.output.find("edge of the lattice") == std::string::npos);
+        CHECK(nlohmann::json::parse(test::readFile(dir.path("whole.obj.json")))["lattice"]["faces_open_at_lattice_edge"] == 0);
+    }
 }
 
 TEST_CASE("a camera frustum's grid is listed as one, meshed on its voxels and mapped through its frustum") {

@@ -140,6 +140,11 @@ void runMesh(const MeshOptions& o) {
         note("the mesh reaches " + num(rep.farthestCoordinate) + " from the origin, where its float coordinates (those of every " +
              "mesh file) step by " + num(rep.coordinateStep) + ", " + num(rep.coordinateStep / rep.worldSpacing) +
              " of a cell: its shape is coarsened by that much; mesh a grid moved nearer the origin (its transform) to keep it");
+    // A shape that passes its box is cut there: an open mesh, said rather than left to be found.
+    if (rep.facesOpenAtLatticeEdge > 0)
+        note("the surface reaches the edge of the lattice (" + std::string(o.expr.empty() ? "the grid's bounds" : "--bbox") + ") through " +
+             std::to_string(rep.facesOpenAtLatticeEdge) + " cell faces: the mesh is open there" +
+             (o.expr.empty() ? std::string() : "; widen --bbox past the shape to close it"));
     if (rep.polygonsWithoutData > 0)
         note("left out " + std::to_string(rep.polygonsWithoutData) + " polygons on inactive voxels alone (the grid's fill, whose " +
              "inside meets its outside where a band ends open; " + std::to_string(rep.cellsWithoutData) + " cells read nothing else)");
@@ -205,7 +210,8 @@ void runMesh(const MeshOptions& o) {
                            {"cells_active", rep.cellsActive},
                            {"cells_with_surface", rep.cellsWithSurface},
                            {"cells_without_data", rep.cellsWithoutData},
-                           {"polygons_without_data", rep.polygonsWithoutData}}},
+                           {"polygons_without_data", rep.polygonsWithoutData},
+                           {"faces_open_at_lattice_edge", rep.facesOpenAtLatticeEdge}}},
                          {"dmc",
                           {{"thin_search", !o.noThin && dmc},
                            {"sharp_features", !o.noSharp && dmc},

@@ -39,6 +39,38 @@ Mesh withoutPolygonsOffData(const Mesh& mesh, const Field& field) {
     return keepPolygons(mesh, keep);
 }
 
+// Faces on the lattice's outer boundary whose corners lie on both sides: the surface leaves the
+// lattice there, and the mesh is open along them (a formula's shape passing its --bbox). Nodes
+// on the outer faces keep their side in every step of DMC, so their values at rest decide. Only
+// the leaves of cells that touch the boundary are visited.
+std::uint64_t facesOpenAtLatticeEdge(const Field& field, const Lattice& lattice, double iso) {
+    const openvdb::CoordBBox& range = lattice.cellRange;
+    const Inside side = field.inside();
+    std::uint64_t open = 0;
+    for (auto leaf = lattice.cells->cbeginLeaf(); leaf; ++leaf) {
+        const openvdb::CoordBBox box = leaf->getNodeBoundingBox();
+        bool touches = false;
+        for (int a = 0; a < 3; ++a) touches = touches || box.min()[a] <= range.min()[a] || box.max()[a] >= range.max()[a];
+        if (!touches) continue;
+        for (auto it = leaf->cbeginValueOn(); it; ++it) {
+            const openvdb::Coord c = it.getCoord();
+            for (int a = 0; a < 3; ++a)
+                for (const bool high : {false, true}) {
+                    if (c[a] != (high ? range.max()[a] : range.min()[a])) continue;
+                    Vec3i first(c.x(), c.y(), c.z()), dims(2, 2, 2);
+                    first[std::size_t(a)] += high ? 1 : 0;
+                    dims[std::size_t(a)] = 1;
+                    double v[4];
+                    field.sampleNodes(lattice.frame, first, dims, nullptr, v);
+                    int inside = 0;
+                    for (const double x : v) inside += isInside(x, iso, side);
+                    open += inside > 0 && inside < 4;
+                }
+        }
+    }
+    return open;
+}
+
 } // namespace
 
 const char* methodName(MeshMethod m) {
@@ -135,6 +167,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
     report.cellsExamined = lattice.stats.cellsExamined;
     report.cellsActive = lattice.stats.cellsActive;
     report.secondsLattice = lattice.stats.seconds;
+    report.facesOpenAtLatticeEdge = facesOpenAtLatticeEdge(field, lattice, report.iso);
 
     LatticeDeformation deformation;
     ThinSearchOptions to;

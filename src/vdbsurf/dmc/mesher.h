@@ -71,6 +71,9 @@ struct MeshReport {
     const OwnFrame* ownFrame = nullptr;  // that frame and its map to world (the field's: valid while it lives), if any
     std::uint64_t upperNodesTested = 0, leafBlocksTested = 0, leafBlocksVisited = 0;
     std::uint64_t cellsExamined = 0, cellsActive = 0, cellsWithSurface = 0;
+    // Cell faces on the lattice's outer boundary that the surface crosses: the mesh is open
+    // there, cut where the lattice ends (a formula's shape reaching past its box).
+    std::uint64_t facesOpenAtLatticeEdge = 0;
     std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;
     std::uint64_t thinEdgesSplit = 0; // of the nodes moved, those an edge or face diagonal hid a part from
     std::uint64_t thinNodesCentred = 0; // moved within their side to the middle of a thin part (centreThinParts)
