@@ -601,6 +601,36 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
         CHECK_FALSE(j["grids"][0]["scene"]["surface_only"].get<bool>());
         CHECK(j["grids"][0]["scene"]["primitives"][2]["half_length"].get<double>() == 0.35);
     }
+    // A subtracting primitive added alone carves a hole (it was refused: parsed as a scene of its
+    // own, it had no "add" primitive), and the result is the edited scene's raster.
+    r = runVdbsurf({"edit", dir.path("e.vdb"), "--add",
+                    R"({"core": "ellipsoid", "center": [0.1, 0, 0], "radii": [0.2, 0.2, 0.2], "falloff": 0.1, "op": "subtract"})",
+                    "--scene-out", dir.path("carved.json"), "-o", dir.path("carved.vdb")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    r = runVdbsurf({"rasterize", dir.path("carved.json"), "-o", dir.path("carved_full.vdb"), "--voxel-size", "0.02"});
+    REQUIRE(r.exitCode == 0);
+    {
+        const auto c = openvdb::GridBase::grid<openvdb::FloatGrid>(readScalarGrid(dir.path("carved.vdb"), "density").grid);
+        const auto cf = openvdb::GridBase::grid<openvdb::FloatGrid>(readScalarGrid(dir.path("carved_full.vdb"), "density").grid);
+        CHECK(c->activeVoxelCount() == cf->activeVoxelCount());
+        auto ca = cf->getConstAccessor();
+        std::size_t carvedDiffer = 0, changed = 0;
+        auto ea = e->getConstAccessor();
+        for (auto it = c->cbeginValueOn(); it; ++it) {
+            openvdb::CoordBBox bb;
+            it.getBoundingBox(bb);
+            for (auto v = bb.begin(); v; ++v) {
+                carvedDiffer += ca.getValue(*v) != *it || !ca.isValueOn(*v);
+                changed += ea.getValue(*v) != *it;
+            }
+        }
+        CHECK(carvedDiffer == 0);
+        CHECK(changed > 0);
+        const auto j = nlohmann::json::parse(test::readFile(dir.path("carved.json")));
+        REQUIRE(j["primitives"].size() == 4);
+        CHECK(j["primitives"][3]["op"] == "subtract");
+    }
 
     const auto before = dir.files();
     auto bad = [&](const std::string& name, const std::string& text, const std::string& what) {

@@ -90,11 +90,10 @@ void runEdit(const EditOptions& o) {
         if (i > 0 && removed[i] == removed[i - 1]) throw Error("--remove", "primitive " + std::to_string(removed[i]) + " is given twice");
         prims.erase(prims.begin() + removed[i]);
     }
-    for (const std::string& text : o.add) {
-        const DensityScene one = parseSceneText("{\"primitives\": [" + text + "]}", "--add");
-        prims.push_back(one.primitives().front());
-    }
-    const DensityScene after(prims, source, before.voxelSize());
+    // Each added primitive is checked alone (numbered as it will be), so it may subtract: a hole
+    // carved into the raster. (Parsed as a scene of its own, it needed an "add" op.)
+    for (const std::string& text : o.add) prims.push_back(parsePrimitiveText(text, prims.size(), "--add"));
+    const DensityScene after(prims, source + ", edited", before.voxelSize());
 
     RasterOptions ro;
     ro.voxelSize = file.voxelSize;

@@ -169,6 +169,10 @@ DensityScene readSceneFile(const std::string& path) {
     return parseSceneText(readWholeFile(path), path);
 }
 
+Primitive parsePrimitiveText(const std::string& text, std::size_t index, const std::string& source) {
+    return parsePrimitive(parseText(text, source), index, source);
+}
+
 std::string sceneToJsonText(const std::vector<Primitive>& primitives, std::optional<double> voxelSize) {
     json doc;
     doc["primitives"] = json::array();

@@ -11,6 +11,10 @@ namespace vdbsurf {
 DensityScene parseSceneText(const std::string& text, const std::string& source);
 DensityScene readSceneFile(const std::string& path);
 
+// One primitive's JSON, checked as a scene file's primitives are and numbered `index` in
+// messages: for adding it to a scene (alone it may subtract; the scene it joins is checked whole).
+Primitive parsePrimitiveText(const std::string& text, std::size_t index, const std::string& source);
+
 // A core's name in scene files: "ellipsoid", "box", "capsule".
 const char* coreName(CoreShape core);
 
