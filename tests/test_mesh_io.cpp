@@ -183,6 +183,19 @@ TEST_CASE("OBJ reader: corner forms, negative indices, skipped statements, and e
     fails("v 0 0 nan\n", "not finite");
     fails("v 0 0 0\nf 1 x 1\n", "not an index");
     fails("v 0 0 0\n", "holds no polygons");
+    // A backslash at a line's end continues it (with a '\r' or blanks after it too), but not a
+    // comment's; an error in a continued statement names the line it starts on.
+    {
+        std::ofstream(path) << "# from C:\\models\\\nv 0 0 0\nv 1 \\\n 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 \\\r\n 3 \\ \n4\nf 1 3 4\n";
+        const Mesh c = readMesh(path);
+        REQUIRE(c.points.size() == 4);
+        CHECK(c.points[1] == Vec3f(1, 0, 0));
+        REQUIRE(c.polygonCount() == 2);
+        CHECK(std::vector<std::uint32_t>(c.polygon(0), c.polygon(0) + 4) == std::vector<std::uint32_t>{0, 1, 2, 3});
+        CHECK(std::vector<std::uint32_t>(c.polygon(1), c.polygon(1) + 3) == std::vector<std::uint32_t>{0, 2, 3});
+    }
+    fails("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 \\\n2 \\\n9\nf 1 2 3\n", "line 4: face index 9 is out of range");
+    fails("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 \\\n", "line 4: a face needs at least three vertices");
     CHECK_THROWS_WITH(readMesh(dir.path("missing.obj")), Catch::Contains("missing.obj"));
     CHECK_THROWS_WITH(readMesh(dir.path("in.stl")), Catch::Contains("unsupported"));
 }

@@ -1,6 +1,7 @@
 // Wavefront OBJ reader: "v" positions and "f" polygons (v, v/vt, v/vt/vn, v//vn; negative
-// indices count back from the last vertex). Everything else (vt, vn, g, o, s, usemtl, l, ...)
-// is skipped. Written here rather than taken from OpenMesh's reader because that one drops
+// indices count back from the last vertex); a backslash ending a line joins the next to it (the
+// format's continuation, which some exporters use for long faces). Everything else (vt, vn, g,
+// o, s, usemtl, l, ...) is skipped. Written here rather than taken from OpenMesh's reader because that one drops
 // polygons it cannot add to a halfedge mesh with only a warning; we want every polygon, and
 // errors that name the line.
 #include "vdbsurf/core/error.h"
@@ -39,15 +40,40 @@ Mesh readObj(const std::string& path) {
     const std::string text = readWholeFile(path);
     Mesh mesh;
     std::vector<std::uint32_t> face;
-    std::size_t lineNo = 0;
+    std::size_t lineNo = 0, startLine = 0; // the line read last, the one its statement starts on
     const char* p = text.data();
     const char* const textEnd = p + text.size();
-    auto fail = [&](const std::string& what) { throw Error(path, "line " + std::to_string(lineNo) + ": " + what); };
+    auto fail = [&](const std::string& what) { throw Error(path, "line " + std::to_string(startLine) + ": " + what); };
+    // Where a line [b, e) ends in a backslash (before a '\r' or blanks), the backslash: the next
+    // line continues it.
+    auto continued = [](const char* b, const char* e) -> const char* {
+        while (e > b && (e[-1] == '\r' || e[-1] == ' ' || e[-1] == '\t')) --e;
+        return e > b && e[-1] == '\\' ? e - 1 : nullptr;
+    };
+    std::string joined; // a line continued by backslashes, put together
     while (p < textEnd) {
-        ++lineNo;
+        startLine = ++lineNo;
         const char* eol = p;
         while (eol < textEnd && *eol != '\n') ++eol;
         LineReader line{p, eol};
+        line.skipSpace();
+        // (Not a comment's: one ending in a Windows folder would swallow the next statement.)
+        const char* cut = line.p < eol && *line.p == '#' ? nullptr : continued(p, eol);
+        if (cut) {
+            joined.assign(p, cut);
+            while (true) {
+                p = eol + 1;
+                if (p >= textEnd) break;
+                ++lineNo;
+                eol = p;
+                while (eol < textEnd && *eol != '\n') ++eol;
+                const char* more = continued(p, eol);
+                joined += ' ';
+                joined.append(p, more ? more : eol);
+                if (!more) break;
+            }
+            line = LineReader{joined.data(), joined.data() + joined.size()};
+        }
         p = eol + 1;
         line.skipSpace();
         const char* tagEnd = line.tokenEnd();
