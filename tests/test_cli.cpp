@@ -677,6 +677,27 @@ TEST_CASE("scenes: rasterize, edit and mesh from the command line, and malformed
                   "primitive 0 is given twice", now);
     expectFailure(dir, {"edit", dir.path("d.vdb"), "--remove", "0", "--remove", "1", "--remove", "2", "-o", dir.path("bad.vdb")}, "d.vdb",
                   "no primitive with op \"add\"", now);
+    // A scene whose weights never add up to the surface's 0.5: kept only near that surface, it keeps
+    // nothing, which is an error naming the scene (no empty file); in full it is its density, said
+    // to have no surface.
+    {
+        std::ofstream(dir.path("faint.json")) << R"({"primitives": [{"core": "ellipsoid", "center": [0,0,0], "radii": [0.3,0.2,0.2], "falloff": 0.4, "weight": 0.3}]})";
+    }
+    const auto beforeFaint = dir.files();
+    expectFailure(dir, {"rasterize", dir.path("faint.json"), "-o", dir.path("faint.vdb"), "--voxel-size", "0.05", "--surface-only"},
+                  "faint.json", "has no surface: no density reaches 0.5 (values lie within 0 .. 0.3)", beforeFaint);
+    r = runVdbsurf({"rasterize", dir.path("faint.json"), "-o", dir.path("faint.vdb"), "--voxel-size", "0.05"});
+    CHECK(r.exitCode == 0);
+    CHECK(r.output.find("no density reaches 0.5") != std::string::npos);
+    CHECK(test::fileExists(dir.path("faint.vdb")));
+    // So is an edit that leaves a surface-only raster no surface.
+    {
+        std::ofstream(dir.path("single.json")) << R"({"primitives": [{"core": "ellipsoid", "center": [0,0,0], "radii": [0.3,0.2,0.2], "falloff": 0.4}]})";
+    }
+    r = runVdbsurf({"rasterize", dir.path("single.json"), "-o", dir.path("single.vdb"), "--voxel-size", "0.05", "--surface-only"});
+    REQUIRE(r.exitCode == 0);
+    expectFailure(dir, {"edit", dir.path("single.vdb"), "--set", "0.weight=0.3", "-o", dir.path("faded.vdb")}, "single.vdb:density, edited",
+                  "has no surface: no density reaches 0.5", dir.files());
     writeSphereFile(dir.path("plain.vdb"));
     const auto now2 = dir.files();
     expectFailure(dir, {"edit", dir.path("plain.vdb"), "--set", "0.falloff=1", "-o", dir.path("bad.vdb")}, "plain.vdb",

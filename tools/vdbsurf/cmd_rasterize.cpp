@@ -46,6 +46,18 @@ void requireVdbOutput(const std::string& path) {
     checkWritableTarget(path);
 }
 
+// A raster kept only near the 0.5 surface keeps nothing where no density reaches 0.5 (weights
+// too low to add up to it): an error naming the scene, before any file is written, rather than
+// an empty grid. A full raster of such a scene holds its density, and says it has no surface.
+void checkSurface(const DensityRaster& raster, bool surfaceOnly, const std::string& name) {
+    const DensityScene& scene = raster.scene();
+    if (surfaceOnly && raster.empty())
+        throw Error(name, "has no surface: no density reaches 0.5 (" + valueRangeText(scene) +
+                              "), so --surface-only keeps nothing; raise a weight, or rasterize without --surface-only for the density alone");
+    if (!surfaceOnly && !(scene.bounds(scene.domain()).hi >= 0.5))
+        note("no density reaches 0.5 (" + valueRangeText(scene) + "): the grid holds density but no surface");
+}
+
 void runRasterize(const RasterizeOptions& o) {
     if (o.threads < 0) throw Error("--threads", "must be 0 (all cores) or a positive number");
     requireVdbOutput(o.output);
@@ -59,6 +71,7 @@ void runRasterize(const RasterizeOptions& o) {
     ro.cancel = &processCancelToken();
     const DensityRaster raster(scene, ro);
     processCancelToken().check();
+    checkSurface(raster, o.surfaceOnly, o.input);
     writeDensityVdb(o.output, raster, o.surfaceOnly, o.input);
     note("wrote " + o.output + ": grid 'density' (fog, surface at 0.5), voxel size " + messageNumber(*h) +
          (o.surfaceOnly ? ", values only near the surface" : "") + "; " + describe(raster.stats()));
@@ -102,6 +115,7 @@ void runEdit(const EditOptions& o) {
     DensityRaster raster(before, ro, file.grid);
     const RasterStats& st = raster.update(after);
     processCancelToken().check();
+    checkSurface(raster, file.surfaceOnly, source + ", edited");
     writeDensityVdb(o.output, raster, file.surfaceOnly, source);
     note("wrote " + o.output + ": " + std::to_string(st.leavesRecomputed) + " leaves recomputed; " + describe(st));
     if (!o.sceneOut.empty()) {

@@ -705,6 +705,10 @@ GridBasePtr DensityRaster::grid() const {
     mImpl->checkUsable();
     return mImpl->grid;
 }
+bool DensityRaster::empty() const {
+    mImpl->checkUsable();
+    return mImpl->grid->activeVoxelCount() == 0; // (an edit may leave leaves whose voxels are all off)
+}
 const DensityScene& DensityRaster::scene() const { return mImpl->scene; }
 const RasterStats& DensityRaster::stats() const { return mImpl->stats; }
 

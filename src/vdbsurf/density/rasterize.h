@@ -60,6 +60,7 @@ public:
     ~DensityRaster();
 
     GridBasePtr grid() const; // FloatGrid "density", fog volume, background 0
+    bool empty() const;       // no active voxel or tile (surface only: no surface)
     const DensityScene& scene() const;
     const RasterStats& stats() const; // of the last build or edit
 
