@@ -1,9 +1,9 @@
 // Wavefront OBJ reader: "v" positions and "f" polygons (v, v/vt, v/vt/vn, v//vn; negative
 // indices count back from the last vertex); a backslash ending a line joins the next to it (the
 // format's continuation, which some exporters use for long faces). Everything else (vt, vn, g,
-// o, s, usemtl, l, ...) is skipped. Written here rather than taken from OpenMesh's reader because that one drops
-// polygons it cannot add to a halfedge mesh with only a warning; we want every polygon, and
-// errors that name the line.
+// o, s, usemtl, l, ...) is skipped. Written here rather than taken from OpenMesh's reader
+// because that one drops polygons it cannot add to a halfedge mesh with only a warning; we want
+// every polygon, and errors that name the line.
 #include "vdbsurf/core/error.h"
 #include "vdbsurf/core/read_file.h"
 #include "vdbsurf/mesh/mesh_io.h"

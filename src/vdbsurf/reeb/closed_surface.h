@@ -36,8 +36,8 @@ struct ClosedSurface {
     double meanEdgeLength() const;
 };
 
-// Polygons are fanned into triangles as mesh/fan_triangles.h does. Throws Error naming inputName for an open
-// surface (naming a boundary edge), an edge of three or more polygons or inconsistent
+// Polygons are fanned into triangles as mesh/fan_triangles.h does. Throws Error naming
+// inputName for an open surface (naming a boundary edge), an edge of three or more polygons or inconsistent
 // orientation, a non-manifold vertex (two fans meeting at a point), a polygon with fewer than
 // three corners or a repeated vertex, a non-finite point, or an empty mesh. Input that fails
 // as given but passes once points at equal positions are merged (a file written per corner, or
