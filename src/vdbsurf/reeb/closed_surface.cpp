@@ -34,12 +34,17 @@ ClosedSurface buildFrom(const Mesh& mesh, const std::string& inputName) {
                 if (vs[i] == vs[j])
                     throw Error(inputName, "polygon " + std::to_string(p) + " uses vertex " + std::to_string(vs[i]) + " twice");
     }
-    // A fold (a vertex whose only two polygons run opposite ways round it) fans into an edge of
-    // four triangles; named as what it is rather than as that edge.
+    // A vertex in two polygons only, which run opposite ways round it: a fold (a fin of no area,
+    // as a weld can leave) or, in a modelled mesh, a vertex left on an edge by dissolving edges
+    // (valence 2). Fanned from their first corners the two put an edge in four triangles; named
+    // as what it is rather than as that edge. (fanIntoTriangles would triangulate it manifold;
+    // taking it is left open: a fin and a flat valence-2 vertex differ only in their geometry.)
     if (const std::vector<std::uint32_t> folds = foldedVertices(mesh); !folds.empty())
-        throw Error(inputName, "vertex " + std::to_string(folds.front()) + " is a fold: its only two polygons run opposite ways round it, a fin of no area" +
+        throw Error(inputName, "vertex " + std::to_string(folds.front()) +
+                                   " is a fold: its only two polygons run opposite ways round it (a fin of no area, or a vertex of valence 2"
+                                   " left on an edge by dissolving edges)" +
                                    (folds.size() > 1 ? " (and " + std::to_string(folds.size() - 1) + " more)" : std::string()) +
-                                   "; the Reeb graph needs a closed manifold surface");
+                                   "; the Reeb graph needs a closed manifold surface with three or more polygons round every vertex");
     // Fan every polygon into triangles first, so the fan analysis sees the triangles' edges.
     std::vector<std::uint32_t> polygonOf;
     const Mesh tris = fanIntoTriangles(mesh, &polygonOf);
