@@ -106,7 +106,8 @@ void runEdit(const EditOptions& o) {
     // Each added primitive is checked alone (numbered as it will be), so it may subtract: a hole
     // carved into the raster. (Parsed as a scene of its own, it needed an "add" op.)
     for (const std::string& text : o.add) prims.push_back(parsePrimitiveText(text, prims.size(), "--add"));
-    const DensityScene after(prims, source + ", edited", before.voxelSize());
+    const std::string edited = source + ", edited"; // how the edited scene is named in its errors
+    const DensityScene after(prims, edited, before.voxelSize());
 
     RasterOptions ro;
     ro.voxelSize = file.voxelSize;
@@ -115,7 +116,7 @@ void runEdit(const EditOptions& o) {
     DensityRaster raster(before, ro, file.grid);
     const RasterStats& st = raster.update(after);
     processCancelToken().check();
-    checkSurface(raster, file.surfaceOnly, source + ", edited");
+    checkSurface(raster, file.surfaceOnly, edited);
     writeDensityVdb(o.output, raster, file.surfaceOnly, source);
     note("wrote " + o.output + ": " + std::to_string(st.leavesRecomputed) + " leaves recomputed; " + describe(st));
     if (!o.sceneOut.empty()) {
