@@ -769,6 +769,17 @@ TEST_CASE("info describes a mesh: counts, topology, genus, and what subdivide an
     CHECK(open["boundary_edges"] == 4);
     CHECK(open["subdivide"] == true);
     CHECK(open["patches"].get<std::string>().find("the surface is open") != std::string::npos);
+    // patches as it runs by default, along z: a cube pressed flat across z is refused, and
+    // patches itself says the same, naming the file; along x it is taken.
+    Mesh pressed = test::cubeMesh();
+    for (Vec3f& p : pressed.points) p.z = 0.5f;
+    writeMesh(dir.path("pressed.obj"), pressed);
+    const auto flat = json("pressed.obj");
+    CHECK(flat["subdivide"] == true);
+    CHECK(flat["patches"].get<std::string>().find("lies flat across the height axis (0, 0, 1)") != std::string::npos);
+    expectFailure(dir, {"patches", dir.path("pressed.obj"), "-o", dir.path("pf.obj")}, "pressed.obj", "lies flat across the height axis",
+                  dir.files());
+    CHECK(runVdbsurf({"-q", "patches", dir.path("pressed.obj"), "-o", dir.path("px.obj"), "--axis", "x"}).exitCode == 0);
 
     // A mesh no job takes says why each refuses it; a bad file is one error naming it.
     Mesh three = test::cubeMesh();

@@ -1,11 +1,13 @@
 // Quality measures and the comparison behind `vdbsurf compare`: distances to an iso surface
 // against the closed form, coverage of a mesh that misses half the surface, and DMC against
-// OpenVDB's volumeToMesh on a plate thinner than a cell.
+// OpenVDB's volumeToMesh on a plate thinner than a cell; distances to a mesh of mixed scales
+// against a search of every triangle.
 #include "support/test_support.h"
 
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/expression_field.h"
 #include "vdbsurf/field/grid_field.h"
+#include "vdbsurf/mesh/mesh_distance.h"
 #include "vdbsurf/quality/compare.h"
 #include "vdbsurf/quality/surface_quality.h"
 
@@ -30,6 +32,59 @@ TEST_CASE("distance to the iso surface matches the closed form of a sphere, insi
     }
     // Farther than the cap: the cap.
     CHECK(distanceToIsoSurface(sphere, 0.0, {0, 0, 1.8}, 0.5) == 0.5);
+}
+
+TEST_CASE("distance to a mesh of mixed scales: as a search of every triangle, built at a spacing far below its large triangles") {
+    // A patch of 20,000 triangles 1e-9 wide beside triangles a million times larger, a sliver
+    // 100 long and 1e-6 wide, one far out at 1e20 and one with a point that is not finite; the
+    // grid asked for at the tiny triangles' spacing (as the patches' fit error asks for four mean
+    // edges). One uniform grid at that spacing would put each large triangle in ~1e35 cells.
+    Mesh m;
+    const double t = 1e-9;
+    for (int j = 0; j <= 100; ++j)
+        for (int i = 0; i <= 100; ++i) m.points.push_back(Vec3f(float(i * t), float(j * t), float(1e-10 * ((i * 7 + j * 3) % 5))));
+    for (std::uint32_t j = 0; j < 100; ++j)
+        for (std::uint32_t i = 0; i < 100; ++i) {
+            const std::uint32_t a = j * 101 + i;
+            m.addPolygon({a, a + 1, a + 102});
+            m.addPolygon({a, a + 102, a + 101});
+        }
+    const auto triangle = [&](Vec3f a, Vec3f b, Vec3f c) {
+        const auto n = std::uint32_t(m.points.size());
+        m.points.insert(m.points.end(), {a, b, c});
+        m.addPolygon({n, n + 1, n + 2});
+    };
+    triangle({-1000, -1000, 5}, {1000, -1000, 5}, {0, 1000, -5});
+    triangle({2, 3, 4}, {300, 3, 4}, {2, 300, 600});
+    triangle({-50, 1, 1}, {50, 1, 1}, {0, 1, 1.000001f});
+    triangle({1e20f, 1e20f, 0}, {1e20f, 1.0001e20f, 0}, {1.0001e20f, 1e20f, 0});
+    triangle({0, 0, 7}, {1, 0, 7}, {0, std::numeric_limits<float>::quiet_NaN(), 7});
+    const MeshDistance grid(m, 4 * t);
+    const auto everyTriangle = [&](const Vec3d& p, double radius) {
+        double best = radius;
+        for (std::size_t f = 0; f + 1 < m.polygonCount(); ++f) { // all but the one that is not finite
+            const std::uint32_t* v = m.polygon(f);
+            best = std::min(best, pointTriangleDistance(p, Vec3d(m.points[v[0]]), Vec3d(m.points[v[1]]), Vec3d(m.points[v[2]])));
+        }
+        return best;
+    };
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> unit(-1, 1), exponent(-10, 21);
+    int near = 0;
+    for (int q = 0; q < 400; ++q) {
+        // Points at every scale from the patch's to the far triangle's, radii likewise.
+        const double scale = std::pow(10.0, exponent(rng)), radius = std::pow(10.0, exponent(rng));
+        const Vec3d p(unit(rng) * scale, unit(rng) * scale, unit(rng) * scale);
+        const double want = everyTriangle(p, radius);
+        CHECK(grid.distance(p, radius) == want);
+        near += want < radius;
+    }
+    CHECK(near > 100); // the queries found triangles, not only their radii
+    // On the patch, beside it, on the sliver and at the far triangle.
+    CHECK(grid.distance({50 * t, 50 * t, 1e-6}, 1e-3) == Approx(1e-6).margin(1e-9));
+    CHECK(grid.distance({0, 1, 1}, 1e-3) == Approx(0).margin(1e-12));
+    CHECK(grid.distance({double(1e20f), double(1e20f), 1e15}, 1e16) == Approx(1e15).epsilon(1e-9));
+    CHECK(grid.distance({0, 0, 7}, 0.5) == 0.5); // only the triangle that is not finite is there
 }
 
 TEST_CASE("surface quality: a full sphere mesh is accurate and covers, half of it covers half") {

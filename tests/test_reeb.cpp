@@ -335,6 +335,40 @@ TEST_CASE("Open and non-manifold input is refused naming the problem", "[reeb]")
     CHECK_THROWS_WITH(buildClosedSurface(folded, "fold.obj"), Catch::Contains("fold.obj") && Catch::Contains("vertex 8 is a fold"));
 }
 
+TEST_CASE("A piece flat across the axis, or of one point, is refused naming it; the rest of the mesh does not matter", "[reeb][patches]") {
+    // A torus beside a torus pressed flat to z = 0.2, and beside one whose every point is at one
+    // position: closed and manifold, but the flat piece has no contours along z and the point
+    // none at all. (The point piece made patches of nothing and blended sections towards the
+    // origin; beside a piece a million times smaller its fit error's grid filled the memory.)
+    const Mesh torus = test::quadTorusMesh(16, 8, 1.0, 0.3);
+    const auto withPiece = [&](auto move) {
+        Mesh two = torus;
+        const auto n = std::uint32_t(torus.points.size());
+        for (const Vec3f& p : torus.points) two.points.push_back(move(p));
+        for (std::size_t f = 0; f < torus.polygonCount(); ++f) {
+            std::vector<std::uint32_t> vs(torus.polygon(f), torus.polygon(f) + torus.polygonSize(f));
+            for (std::uint32_t& v : vs) v += n;
+            two.addPolygon(vs.data(), vs.size());
+        }
+        return two;
+    };
+    const Mesh flat = withPiece([](Vec3f p) { return Vec3f(p.x + 3, p.y, 0.2f); });
+    const Mesh point = withPiece([](Vec3f) { return Vec3f(3, 3, 3); });
+    const Mesh tiny = withPiece([](Vec3f p) { return p * 1e-6f + Vec3f(3, 0, 0); });
+    const std::string first = "the piece of vertex " + std::to_string(torus.points.size()) + " (" + std::to_string(torus.points.size()) + " vertices)";
+    CHECK_THROWS_WITH(patchesOf(flat, {0, 0, 1}), Catch::Contains("mesh: " + first + " lies flat across the height axis (0, 0, 1)") &&
+                                                       Catch::Contains("every point at height 0.2") && Catch::Contains("choose another --axis"));
+    CHECK_THROWS_WITH(patchesOf(point, {0, 0, 1}), Catch::Contains("mesh: " + first + " has every point at one position, (3, 3, 3)"));
+    CHECK_THROWS_WITH(patchesOf(point, {1, 0, 0}), Catch::Contains("every point at one position"));
+    // Along x the pressed torus spans heights: taken, both pieces fitted.
+    const PatchResult across = patchesOf(flat, {1, 0, 0});
+    CHECK(across.graph.units.size() >= 2);
+    // A piece a million times smaller is no fault of its own: taken along z, its fit error measured.
+    const PatchResult small = patchesOf(tiny, {0, 0, 1});
+    CHECK(small.error.meanEdgeLength > 0);
+    CHECK(small.error.rms < 0.5);
+}
+
 TEST_CASE("A quad whose opposite corners share an edge elsewhere is fanned across its other diagonal", "[reeb]") {
     // Every edge of the fanned mesh, with how many triangles use it.
     auto edgeUses = [](const Mesh& tris) {

@@ -10,6 +10,8 @@
 #include "vdbsurf/mesh/mesh_check.h"
 #include "vdbsurf/mesh/mesh_io.h"
 #include "vdbsurf/reeb/closed_surface.h"
+#include "vdbsurf/reeb/height_function.h"
+#include "vdbsurf/reeb/patch_pipeline.h"
 #include "vdbsurf/subdiv/sqrt2_subdivision.h"
 #include "vdbsurf/vdb/vdb_file.h"
 
@@ -125,7 +127,11 @@ void describeMesh(const std::string& path, bool json) {
     const std::size_t coincident = countCoincidentPoints(mesh);
     const std::string subdivide = refusal([&] { Sqrt2Subdivider s(mesh, path); });
     reeb::ClosedSurface surface;
-    const std::string patches = refusal([&] { surface = reeb::buildClosedSurface(mesh, path); });
+    // As `patches` runs by default: along its default axis.
+    const std::string patches = refusal([&] {
+        surface = reeb::buildClosedSurface(mesh, path);
+        reeb::requirePiecesSpanHeights(surface, reeb::makeHeightFunction(surface, reeb::PatchJob().axis), path);
+    });
     const Box3 b = mesh.bounds();
     if (json) {
         nlohmann::json j{{"file", path},

@@ -10,6 +10,7 @@
 #include <functional>
 #include <numeric>
 #include <queue>
+#include <sstream>
 
 namespace vdbsurf::reeb {
 
@@ -143,6 +144,42 @@ HeightFunction makeHeightFunction(const ClosedSurface& s, const Vec3d& axisIn) {
     f.rank.resize(n);
     setOrder(f, std::move(order));
     return f;
+}
+
+namespace {
+std::string written(const Vec3d& v) {
+    std::ostringstream s;
+    s << '(' << v.x << ", " << v.y << ", " << v.z << ')';
+    return s.str();
+}
+} // namespace
+
+void requirePiecesSpanHeights(const ClosedSurface& s, const HeightFunction& f, const std::string& inputName) {
+    UnionFind pieces(s.points.size());
+    for (std::uint32_t c = 0; c < s.vertex.size(); ++c) pieces.unite(s.vertex[c], s.vertex[ClosedSurface::next(c)]);
+    std::vector<double> low(s.points.size(), INFINITY), high(s.points.size(), -INFINITY);
+    for (std::uint32_t v = 0; v < s.points.size(); ++v) {
+        const std::uint32_t r = pieces.find(v);
+        low[r] = std::min(low[r], f.height[v]);
+        high[r] = std::max(high[r], f.height[v]);
+    }
+    // Pieces by their first vertex, so the one named is the same whatever the union order.
+    for (std::uint32_t v = 0; v < s.points.size(); ++v) {
+        const std::uint32_t r = pieces.find(v);
+        if (low[r] != high[r]) continue;
+        const Vec3d& p = s.points[v];
+        std::uint32_t size = 0;
+        bool onePoint = true;
+        for (std::uint32_t w = 0; w < s.points.size(); ++w)
+            if (pieces.find(w) == r) ++size, onePoint = onePoint && s.points[w] == p;
+        const std::string piece = "the piece of vertex " + std::to_string(s.inputVertex[v]) + " (" + std::to_string(size) + " vertices)";
+        if (onePoint)
+            throw Error(inputName, piece + " has every point at one position, " + written(p) + ": it has no shape to fit patches to");
+        std::ostringstream height;
+        height << low[r];
+        throw Error(inputName, piece + " lies flat across the height axis " + written(f.axis) + ", every point at height " + height.str() +
+                                   ": its levels hold no contours to follow; choose another --axis");
+    }
 }
 
 SimplifyReport simplifyExtrema(const ClosedSurface& s, HeightFunction& f, double persistence) {

@@ -5,6 +5,7 @@
 #include "vdbsurf/reeb/closed_surface.h"
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace vdbsurf::reeb {
@@ -26,6 +27,11 @@ Vec3d acrossAxis(const Vec3d& axis);
 // function on a plane has none); breaking them by index alone would scatter spurious minima
 // and saddles over every plateau. Throws Error naming "--axis" for a zero or non-finite axis.
 HeightFunction makeHeightFunction(const ClosedSurface& surface, const Vec3d& axis);
+
+// Throws Error naming inputName where a piece of the surface has all its vertices at one height
+// (flat across the axis, or every point at one position): its level sets along the axis hold no
+// contours, so there is no Reeb graph to fit patches to, only the tie-breaks' order.
+void requirePiecesSpanHeights(const ClosedSurface& surface, const HeightFunction& f, const std::string& inputName);
 
 struct SimplifyReport {
     std::size_t minimaRemoved = 0, maximaRemoved = 0, passes = 0;

@@ -26,6 +26,7 @@ PatchResult makePatches(const Mesh& mesh, const std::string& inputName, const Pa
     r.seconds.surface = lap(t);
     check();
     HeightFunction f = makeHeightFunction(r.surface, job.axis);
+    requirePiecesSpanHeights(r.surface, f, inputName);
     const SimplifyReport simplified = simplifyExtrema(r.surface, f, job.persistence * r.surface.meanEdgeLength());
     r.seconds.height = lap(t);
     check();

@@ -38,7 +38,8 @@ struct PatchResult {
     PatchTimings seconds;
 };
 
-// Throws Error naming inputName for input the Reeb graph cannot take (open, non-manifold ...),
+// Throws Error naming inputName for input the Reeb graph cannot take (open, non-manifold, a piece
+// flat across the axis ...),
 // Cancelled once job.cancel is set.
 PatchResult makePatches(const Mesh& mesh, const std::string& inputName, const PatchJob& job);
 
