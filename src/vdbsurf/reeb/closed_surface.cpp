@@ -83,7 +83,11 @@ ClosedSurface buildFrom(const Mesh& mesh, const std::string& inputName) {
         if (c < s.opposite[c]) s.edgeOf[c] = s.edgeOf[s.opposite[c]] = std::uint32_t(s.edgeCount++);
     UnionFind uf(s.points.size());
     for (std::uint32_t c = 0; c < s.vertex.size(); ++c) uf.unite(s.vertex[c], s.vertex[ClosedSurface::next(c)]);
-    for (std::uint32_t v = 0; v < s.points.size(); ++v) s.components += uf.find(v) == v;
+    s.piece.resize(s.points.size());
+    for (std::uint32_t v = 0; v < s.points.size(); ++v) {
+        s.piece[v] = uf.find(v);
+        s.components += s.piece[v] == v;
+    }
     return s;
 }
 

@@ -23,6 +23,7 @@ struct ClosedSurface {
     std::vector<std::uint32_t> edgeOf;   // per corner: index of its undirected edge
     std::size_t edgeCount = 0;
     std::size_t components = 0;
+    std::vector<std::uint32_t> piece;   // per vertex: its piece's representative vertex
     // Input points merged into an earlier one at the same position, which closed the surface
     // (mergeCoincidentPoints; 0 when the input was closed as given).
     std::size_t mergedPoints = 0;

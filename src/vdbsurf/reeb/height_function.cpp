@@ -155,23 +155,21 @@ std::string written(const Vec3d& v) {
 } // namespace
 
 void requirePiecesSpanHeights(const ClosedSurface& s, const HeightFunction& f, const std::string& inputName) {
-    UnionFind pieces(s.points.size());
-    for (std::uint32_t c = 0; c < s.vertex.size(); ++c) pieces.unite(s.vertex[c], s.vertex[ClosedSurface::next(c)]);
     std::vector<double> low(s.points.size(), INFINITY), high(s.points.size(), -INFINITY);
     for (std::uint32_t v = 0; v < s.points.size(); ++v) {
-        const std::uint32_t r = pieces.find(v);
+        const std::uint32_t r = s.piece[v];
         low[r] = std::min(low[r], f.height[v]);
         high[r] = std::max(high[r], f.height[v]);
     }
     // Pieces by their first vertex, so the one named is the same whatever the union order.
     for (std::uint32_t v = 0; v < s.points.size(); ++v) {
-        const std::uint32_t r = pieces.find(v);
+        const std::uint32_t r = s.piece[v];
         if (low[r] != high[r]) continue;
         const Vec3d& p = s.points[v];
         std::uint32_t size = 0;
         bool onePoint = true;
         for (std::uint32_t w = 0; w < s.points.size(); ++w)
-            if (pieces.find(w) == r) ++size, onePoint = onePoint && s.points[w] == p;
+            if (s.piece[w] == r) ++size, onePoint = onePoint && s.points[w] == p;
         const std::string piece = "the piece of vertex " + std::to_string(s.inputVertex[v]) + " (" + std::to_string(size) + " vertices)";
         if (onePoint)
             throw Error(inputName, piece + " has every point at one position, " + written(p) + ": it has no shape to fit patches to");
