@@ -156,3 +156,42 @@ TEST_CASE("a deformation's trees are freed whole, and a tree another owner share
     CHECK(kept->activeVoxelCount() == 1);
     CHECK(kept->getValue(openvdb::Coord(1, 2, 3)) == openvdb::Vec3f(0.1f, 0.0f, 0.0f));
 }
+
+TEST_CASE("nodes alone inside among their six neighbours are listed where the corner signs decide") {
+    // A field whose inside is specks a cell or two wide: thousands of lone nodes, on block borders
+    // too (node coordinates that are multiples of 8, whose lower neighbour the block did not
+    // read), and pairs across those borders, neither of them alone.
+    ExpressionField f("sin(37*x + 1)*sin(41*y + 2)*sin(43*z + 0.5) + 0.6", Box3{{-1, -1, -1}, {1, 1, 1}});
+    const double h = 0.045;
+    const LatticeFrame frame = f.naturalFrame(h);
+    const CoordBBox range = latticeCellRange(f, frame);
+    const Lattice lat = buildLattice(f, frame, range, 0.0, CellTest::CornerSigns);
+    auto inside = [&](int i, int j, int k) { return f.value(frame.nodeWorld(i, j, k)) < 0; };
+    std::vector<openvdb::Coord> expected;
+    std::size_t onBorders = 0, pairsAcross = 0;
+    for (int i = range.min().x() + 1; i <= range.max().x(); ++i)
+        for (int j = range.min().y() + 1; j <= range.max().y(); ++j)
+            for (int k = range.min().z() + 1; k <= range.max().z(); ++k) {
+                if (!inside(i, j, k) || inside(i + 1, j, k) || inside(i, j + 1, k) || inside(i, j, k + 1)) continue;
+                // The lower neighbours, and whether one across a block border is inside.
+                const bool lower[3] = {inside(i - 1, j, k), inside(i, j - 1, k), inside(i, j, k - 1)};
+                const int at[3] = {i, j, k};
+                bool seenInside = false, acrossInside = false;
+                for (int a = 0; a < 3; ++a) (at[a] % 8 == 0 ? acrossInside : seenInside) |= lower[a];
+                if (seenInside) continue;
+                if (acrossInside) {
+                    ++pairsAcross;
+                    continue;
+                }
+                expected.emplace_back(i, j, k);
+                onBorders += (i % 8 == 0) || (j % 8 == 0) || (k % 8 == 0);
+            }
+    INFO(expected.size() << " lone nodes, " << onBorders << " on block borders; " << pairsAcross << " pairs across them");
+    REQUIRE(range.min() == openvdb::Coord(0, 0, 0)); // (block borders at multiples of 8)
+    REQUIRE(expected.size() > 1000);
+    REQUIRE(onBorders > 100);
+    REQUIRE(pairsAcross > 10);
+    CHECK(lat.loneInsideNodes == expected);
+    // Where cells are asked for their bounds, nodes do not decide what a cell holds: none listed.
+    CHECK(build(f, h, CellTest::Bounds).loneInsideNodes.empty());
+}

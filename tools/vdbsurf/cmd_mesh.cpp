@@ -149,7 +149,10 @@ void runMesh(const MeshOptions& o) {
         note("left out " + std::to_string(rep.polygonsWithoutData) + " polygons on inactive voxels alone (the grid's fill, whose " +
              "inside meets its outside where a band ends open; " + std::to_string(rep.cellsWithoutData) + " cells read nothing else)");
     if (dmc)
-        note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts, " + std::to_string(rep.thinNodesCentred) +
+        note("dmc: " + std::to_string(rep.thinNodesMoved) + " nodes moved into thin parts" +
+             (rep.thinLoneJoined > 0 ? " (" + std::to_string(rep.thinLoneJoined) + " of them to join a node alone inside to the rest across a face)"
+                                     : std::string()) +
+             ", " + std::to_string(rep.thinNodesCentred) +
              " centred in them, " + std::to_string(rep.nodesOnCorners) + " onto corners, " + std::to_string(rep.nodesOnEdges) +
              " onto edges" +
              (rep.unresolvedLeaves > 0 ? " (" + std::to_string(rep.unresolvedLeaves) +
@@ -221,6 +224,7 @@ void runMesh(const MeshOptions& o) {
                            {"thin_samples", rep.thinSamples},
                            {"nodes_moved_thin", rep.thinNodesMoved},
                            {"nodes_moved_hidden_edges", rep.thinEdgesSplit},
+                           {"nodes_moved_lone_joins", rep.thinLoneJoined},
                            {"nodes_centred_thin", rep.thinNodesCentred},
                            {"sharp_edge_cells", rep.sharpEdgeCells},
                            {"sharp_corner_cells", rep.sharpCornerCells},

@@ -77,6 +77,7 @@ struct MeshReport {
     std::uint64_t hiddenCells = 0, thinCandidates = 0, thinSamples = 0, thinNodesMoved = 0;
     std::uint64_t thinEdgesSplit = 0; // of the nodes moved, those an edge or face diagonal hid a part from
     std::uint64_t thinNodesCentred = 0; // moved within their side to the middle of a thin part (centreThinParts)
+    std::uint64_t thinLoneJoined = 0;   // of the nodes moved, those that join a node alone inside to the rest (lone_nodes.h)
     std::uint64_t sharpEdgeCells = 0, sharpCornerCells = 0, sharpRejected = 0, nodesOnEdges = 0, nodesOnCorners = 0;
     std::uint64_t nodesAlongEdges = 0; // of nodesOnEdges, placed between the cells' choices (second round)
     // Lattice leaves the sharp pass skipped: nearly every surface cell's normals may turn past the

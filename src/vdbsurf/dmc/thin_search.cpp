@@ -7,6 +7,7 @@
 #include "vdbsurf/dmc/hidden_edges.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/leaf_nodes.h"
+#include "vdbsurf/dmc/lone_nodes.h"
 #include "vdbsurf/lattice/lattice.h"
 
 #include <Eigen/Dense>
@@ -403,7 +404,7 @@ std::vector<Vec3i> restoreLoneJoins(const Field& field, const LatticeFrame& fram
 }
 
 void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
-                ThinSearchStats* stats, std::vector<Vec3i>* crowded) {
+                ThinSearchStats* stats, std::vector<Vec3i>* crowded, std::vector<Vec3i>* loneJoins) {
     const auto start = std::chrono::steady_clock::now();
     if (options.steps < 1 || options.steps > 64)
         throw Error("--search-steps", "must be between 1 and 64, not " + std::to_string(options.steps));
@@ -492,6 +493,15 @@ void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOpti
     for (const Coord& c : cutOffTips(edgeRuns, field, frame, iso, phaseOne, deformation, local.samples)) {
         acc.setValueOff(c, openvdb::Vec3f(0.0f));
         --local.nodesMoved;
+    }
+    // Where the cells hide nothing, a node alone inside may still be joined across a face.
+    if (loneJoins) loneJoins->clear();
+    if (field.cellBoundsAreCornerRange(frame)) {
+        const std::vector<Vec3i> joined = joinLoneNodes(field, lattice, options, deformation, &local.samples);
+        local.loneJoined = joined.size();
+        local.nodesMoved += joined.size();
+        local.bridged += joined.size();
+        if (loneJoins) *loneJoins = joined;
     }
     local.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (stats) *stats = local;

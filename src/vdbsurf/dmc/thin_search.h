@@ -47,6 +47,7 @@ struct ThinSearchStats {
     std::uint64_t nodesMoved = 0;
     std::uint64_t bridged = 0;      // of those, moved to join a thin part's nodes across a diagonal
     std::uint64_t edgesSplit = 0;   // of those, moved onto a part that crossed an edge between two nodes of one side
+    std::uint64_t loneJoined = 0;   // of those, moved to join a node alone inside to the rest (lone_nodes.h)
     double seconds = 0;
 };
 
@@ -55,9 +56,10 @@ int thinSearchSamplesPerAxis(int steps);
 
 // Adds the moves it finds to `deformation` (whose offsets must be empty). Throws Error naming
 // --search-steps when steps is out of range (1 .. 64). `crowded` receives the nodes that may
-// have at least 4 of their six neighbours across the surface, for centreThinParts.
+// have at least 4 of their six neighbours across the surface, for centreThinParts; `loneJoins`
+// the nodes moved to join a lone node (lone_nodes.h), a neck of a few polygons, no thin part.
 void thinSearch(const Field& field, const Lattice& lattice, const ThinSearchOptions& options, LatticeDeformation& deformation,
-                ThinSearchStats* stats = nullptr, std::vector<Vec3i>* crowded = nullptr);
+                ThinSearchStats* stats = nullptr, std::vector<Vec3i>* crowded = nullptr, std::vector<Vec3i>* loneJoins = nullptr);
 
 // Centring, the last move, after the sharp pass: a node at least 4 of whose six neighbours lie
 // across the surface is all the lattice has of a thin part's cross-section there (a wire about

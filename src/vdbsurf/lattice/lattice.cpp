@@ -170,6 +170,13 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
     std::vector<std::uint32_t> withoutData(blocks.size(), 0); // active cells without data, per block
     std::vector<std::int64_t> nanAt(blocks.size(), -1);
     std::vector<std::uint32_t> cellsExamined(blocks.size(), 0);
+    // Per block, the nodes alone inside among their six neighbours (each the low corner of one of
+    // the block's cells, so listed once), and whether a neighbour below the block was not seen.
+    struct Lone {
+        Coord node;
+        bool unseenNeighbour;
+    };
+    std::vector<std::vector<Lone>> lone(cornersExact ? blocks.size() : 0);
     Progress progress("lattice", blocks.size(), cancel);
     // Active cells counted as they are found, so that a lattice too fine for the machine stops
     // during this pass rather than minutes later, when the kernel kills the process.
@@ -233,6 +240,25 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
             // corners are inside; it also touches the surface when it has no inside corner and
             // a corner exactly at iso.
             const unsigned zMask = (0xFFu >> (7 - hi.z())) & (0xFFu << lo.z());
+            if (cornersExact) {
+                // Bit z of column (x, y): node inside, its neighbours along z and, where the
+                // block holds them, along x and y outside. A neighbour at x, y or z = -1 is not in
+                // the block: such nodes are checked below. Only nodes whose eight cells are in
+                // the range.
+                const Coord first = cellRange.min().offsetBy(1) - o;
+                const unsigned zNodes = zMask & (0xFFu << std::max(0, first.z()));
+                for (int x = std::max(lo.x(), first.x()); x <= hi.x(); ++x)
+                    for (int y = std::max(lo.y(), first.y()); y <= hi.y(); ++y) {
+                        const std::size_t c = std::size_t(x + kBlockNodes * y);
+                        unsigned alone = inside[c] & ~(inside[c] << 1) & ~(inside[c] >> 1) & ~inside[c + 1] & ~inside[c + kBlockNodes];
+                        if (x > 0) alone &= ~unsigned(inside[c - 1]);
+                        if (y > 0) alone &= ~unsigned(inside[c - kBlockNodes]);
+                        for (alone &= zNodes; alone; alone &= alone - 1) {
+                            const int z = __builtin_ctz(alone);
+                            lone[bi].push_back({o.offsetBy(x, y, z), x == 0 || y == 0 || z == 0});
+                        }
+                    }
+            }
             // Where cells are asked for their bounds, the block's 2^3 groups of cells are asked
             // first (bit gx + 4 gy + 16 gz): a cell outside every straddling group cannot hold
             // surface. Each cell's own question is what costs (a long formula's bounds take
@@ -351,6 +377,17 @@ Lattice buildLattice(const Field& field, const LatticeFrame& frame, const CoordB
         const Vec3i node = toVec(blocks[bi]) + Vec3i(n % kBlockNodes, (n / kBlockNodes) % kBlockNodes, n / (kBlockNodes * kBlockNodes));
         throw Error(field.describe(), "is undefined (NaN) at " + pointText(frame.nodeWorld(node)));
     }
+    // Nodes whose neighbour below lay in another block: that neighbour decides.
+    for (const std::vector<Lone>& found : lone)
+        for (const Lone& l : found) {
+            if (l.unseenNeighbour) {
+                std::array<double, 27> around;
+                field.sampleNodes(frame, toVec(l.node) - Vec3i(1, 1, 1), {3, 3, 3}, nullptr, around.data());
+                if (isInside(around[4], iso, side) || isInside(around[10], iso, side) || isInside(around[12], iso, side)) continue;
+            }
+            lat.loneInsideNodes.push_back(l.node);
+        }
+    std::sort(lat.loneInsideNodes.begin(), lat.loneInsideNodes.end());
     for (std::size_t bi = 0; bi < blocks.size(); ++bi) {
         st.cellsExamined += cellsExamined[bi];
         st.cellsWithoutData += withoutData[bi];

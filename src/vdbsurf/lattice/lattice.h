@@ -9,6 +9,7 @@
 #include "vdbsurf/vdb/sparse_tree.h"
 
 #include <cstdint>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -31,6 +32,11 @@ struct Lattice {
     LatticeFrame frame;
     openvdb::CoordBBox cellRange;   // cells considered (from the field's domain)
     CellTree::Ptr cells;           // active voxel = cell that may hold surface
+    // Where the corner values decide the cells (CellTest::CornerSigns, or a field whose cell
+    // bounds are its corners' range): the nodes inside whose six neighbours all lie outside, in
+    // node order (only nodes whose eight cells are in the range). Marching cubes meshes each as a
+    // bubble of its own; DMC asks whether the field joins it to a node across a face.
+    std::vector<openvdb::Coord> loneInsideNodes;
     LatticeStats stats;
 };
 
