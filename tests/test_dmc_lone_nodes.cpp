@@ -3,6 +3,7 @@
 #include "support/test_support.h"
 
 #include "vdbsurf/core/threads.h"
+#include "vdbsurf/dmc/inside_topology.h"
 #include "vdbsurf/dmc/lone_nodes.h"
 #include "vdbsurf/dmc/mesher.h"
 #include "vdbsurf/field/grid_field.h"
@@ -127,4 +128,33 @@ TEST_CASE("the centre of a block joins a lone node only where it changes nothing
     CHECK_FALSE(joinsBubbleOnly(b.data(), kLoneAtMinusX));
     b = block({{-1, -1, 0}, {1, 0, 0}});
     CHECK_FALSE(joinsBubbleOnly(b.data(), 9 + 0 + 0)); // offset (-1, -1, 0)
+}
+
+TEST_CASE("putting a node inside changes the inside's Euler characteristic as its topology says") {
+    // Alone: a new piece, a ball.
+    CHECK(insideEulerChange(block({}).data()) == 1);
+    CHECK(insidePiecesAtCentre(block({}).data()) == 0);
+    // On a layer: the layer grows, nothing else.
+    const auto layer = block({{-1, -1, -1}, {0, -1, -1}, {1, -1, -1}, {-1, 0, -1}, {0, 0, -1}, {1, 0, -1}, {-1, 1, -1}, {0, 1, -1}, {1, 1, -1}});
+    CHECK(insideEulerChange(layer.data()) == 0);
+    CHECK(insidePiecesAtCentre(layer.data()) == 1);
+    // Between two nodes across from each other: two pieces joined.
+    const auto two = block({{-1, 0, 0}, {1, 0, 0}});
+    CHECK(insideEulerChange(two.data()) == -1);
+    CHECK(insidePiecesAtCentre(two.data()) == 2);
+    // Between two nodes of an arc round an edge the centre lies on: a loop closed, one piece.
+    const auto arc = block({{-1, 0, 0}, {-1, 1, 0}, {-1, 1, 1}, {0, 1, 1}, {1, 1, 1}, {1, 1, 0}, {1, 0, 0}});
+    CHECK(insidePiecesAtCentre(arc.data()) == 1);
+    CHECK(insideEulerChange(arc.data()) == -1);
+    // In the middle of a ring of eight in its plane: the ring's hole filled.
+    const auto ring = block({{-1, -1, 0}, {0, -1, 0}, {1, -1, 0}, {-1, 0, 0}, {1, 0, 0}, {-1, 1, 0}, {0, 1, 0}, {1, 1, 0}});
+    CHECK(insidePiecesAtCentre(ring.data()) == 1);
+    CHECK(insideEulerChange(ring.data()) == 1);
+    // In a cavity of a solid: the cavity filled.
+    std::array<bool, 27> solid;
+    solid.fill(true);
+    CHECK(insidePiecesAtCentre(solid.data()) == 1);
+    CHECK(insideEulerChange(solid.data()) == -1);
+    // Leaving a node out of the pieces: the one beside it no longer counts.
+    CHECK(insidePiecesAtCentre(two.data(), kLoneAtMinusX) == 1);
 }

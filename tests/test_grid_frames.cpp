@@ -477,3 +477,45 @@ TEST_CASE("a frustum or stretched grid whose smallest voxels are below what Open
         }
     }
 }
+
+TEST_CASE("a torus in a grid of sheared, unequal voxels keeps its one handle") {
+    // Found among random affine grids: voxels 0.086 x 0.061 x 0.036, sheared and turned. Meshed at
+    // 0.0994 (2.8 of its smallest voxel), the tube is two cells across one of the lattice's axes,
+    // and bridging once joined two of its nodes that the lattice joins 7 steps round: a second
+    // handle (marching cubes keeps one).
+    const double hmin = 0.036009985115251199;
+    const double rows[3][3] = {{0.52581654084267304, -1.9635254671647411, 1.2362350713192531},
+                               {0.19331612429368988, 1.3124060505207882, 1.0554166093944328},
+                               {-0.95599464837098569, -0.077928565008704959, 0.28284513614647699}};
+    openvdb::Mat4d m = openvdb::Mat4d::identity();
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) m(i, j) = rows[i][j] * hmin;
+    m.setTranslation(openvdb::Vec3d(0.10988372153474872, -0.18662979502166982, -0.14708437574781349));
+    const auto xf = openvdb::math::Transform::createLinearTransform(m);
+    const double band = 3 * std::max({xf->voxelSize()[0], xf->voxelSize()[1], xf->voxelSize()[2]});
+    auto grid = openvdb::FloatGrid::create(float(band));
+    grid->setTransform(xf);
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    openvdb::CoordBBox box;
+    for (int c = 0; c < 8; ++c) {
+        const openvdb::Vec3d i = xf->worldToIndex(openvdb::Vec3d(c & 1 ? 1 : -1, c & 2 ? 1 : -1, c & 4 ? 1 : -1));
+        box.expand(openvdb::Coord::floor(i));
+        box.expand(openvdb::Coord::floor(i) + openvdb::Coord(1));
+    }
+    auto acc = grid->getAccessor();
+    for (auto it = box.begin(); it; ++it) {
+        const openvdb::Vec3d p = xf->indexToWorld(*it);
+        const double ring = std::sqrt(p.x() * p.x() + p.y() * p.y()) - 0.6, d = std::sqrt(ring * ring + p.z() * p.z()) - 0.25;
+        if (std::fabs(d) < band) acc.setValue(*it, float(d));
+    }
+    openvdb::tools::signedFloodFill(grid->tree());
+    const GridField field(grid, "torus");
+    for (const MeshMethod method : {MeshMethod::Dmc, MeshMethod::MarchingCubes}) {
+        MeshReport report;
+        const Mesh mesh = meshGrid(field, method, 0.099363, report);
+        INFO((method == MeshMethod::Dmc ? "dmc" : "mc") << ": " << report.thinNodesMoved << " nodes moved");
+        CHECK(checkTopology(mesh).closedManifoldOriented());
+        CHECK(countComponents(mesh) == 1);
+        CHECK(test::eulerCharacteristic(mesh) == 0);
+    }
+}

@@ -265,7 +265,9 @@ TEST_CASE("A unit end through a saddle of three lobes follows the contour so the
     // with, and their patches met at the saddle in three fans (a non-manifold preview vertex).
     const std::string gyroid = "max(abs(sin(4.85574*x+4.5618)*cos(4.85574*y)+sin(4.85574*y+0.434688)*cos(4.85574*z)+"
                                "sin(4.85574*z+0.194331)*cos(4.85574*x))-0.0613163, sqrt(x^2+y^2+z^2)-0.843363)";
-    const Mesh m = dmcMesh(gyroid, 1.1, 0.0661059);
+    // (At 0.0661 the mesh had it until DMC's bridging stopped closing a loop of 7 lattice steps:
+    // its genus went from 8 to the shape's 7, and the saddle went. DMC gives it at 0.0604.)
+    const Mesh m = dmcMesh(gyroid, 1.1, 0.0604);
     REQUIRE(checkTopology(m).closedManifoldOriented());
     const PatchResult r = patchesOf(m, Vec3d(0, 0, 1));
     std::size_t longEnds = 0;
@@ -530,3 +532,4 @@ TEST_CASE("zipRows: a pole fans to every vertex of the row once", "[reeb][patche
         CHECK(tris[t + 2] == 50);
     }
 }
+

@@ -2,6 +2,7 @@
 
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/dmc/edge_runs.h"
+#include "vdbsurf/dmc/inside_topology.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
@@ -24,89 +25,9 @@ namespace {
 // Offsets of the points of a 3x3x3 block from its centre.
 Coord blockOffset(int i) { return Coord(i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1); }
 
-// Are points i and j of the block adjacent across a face?
-bool adjacent(int i, int j) {
-    const Coord d = blockOffset(i) - blockOffset(j);
-    return std::abs(d.x()) + std::abs(d.y()) + std::abs(d.z()) == 1;
-}
-
-// Steps from the centre to point i: 1 across a face, 2 across an edge, 3 across a corner.
-int stepsFromCentre(int i) {
-    const Coord o = blockOffset(i);
-    return std::abs(o.x()) + std::abs(o.y()) + std::abs(o.z());
-}
-
-// The points of `from` (bit i) and those of `within` adjacent to one of them across a face.
-std::uint32_t grow(std::uint32_t from, std::uint32_t within) {
-    std::uint32_t out = from;
-    for (std::uint32_t left = within & ~from; left; left &= left - 1) {
-        const int j = __builtin_ctz(left);
-        for (std::uint32_t f = from; f; f &= f - 1)
-            if (adjacent(__builtin_ctz(f), j)) {
-                out |= 1u << j;
-                break;
-            }
-    }
-    return out;
-}
-
 // Segment sampling at steps shorter than a search step (h/k), as the thin search's.
 int stepsAlong(const Vec3d& a, const Vec3d& b, double h, int searchSteps) {
     return std::max(2, int(std::ceil(length(b - a) / h * (searchSteps + 1))));
-}
-
-// Inside components of a lattice face or cell with these corners inside (bit i: corner i, its
-// bits the offsets along the face's or cell's axes), as marching cubes' table makes them: corners
-// joined along edges only.
-int cornerComponents(unsigned inside, int dims) {
-    const int corners = 1 << dims;
-    int count = 0;
-    for (unsigned left = inside; left;) {
-        ++count;
-        unsigned component = left & (~left + 1);
-        for (bool grew = true; grew;) {
-            grew = false;
-            for (int i = 0; i < corners; ++i)
-                if ((component >> i & 1u) == 0 && (left >> i & 1u))
-                    for (int k = 0; k < dims; ++k)
-                        if (component >> (i ^ (1 << k)) & 1u) {
-                            component |= 1u << i;
-                            grew = true;
-                            break;
-                        }
-        }
-        left &= ~component;
-    }
-    return count;
-}
-
-// The compactly supported Euler characteristic of the open inside, over the cells that have the
-// block's centre as a corner: the centre, its 6 edges (an interval where either end is inside),
-// 12 faces and 8 cells (their components). The inside's own Euler characteristic is its negative.
-int starEuler(const bool inside[27]) {
-    auto at = [&](int x, int y, int z) { return inside[(x + 1) + 3 * (y + 1) + 9 * (z + 1)]; };
-    int euler = at(0, 0, 0);
-    for (int k = 0; k < 6; ++k) {
-        const Coord e = axisStep(k / 2, k % 2 ? 1 : -1);
-        euler -= at(0, 0, 0) || at(e.x(), e.y(), e.z());
-    }
-    for (int a = 0; a < 3; ++a)
-        for (int b = a + 1; b < 3; ++b)
-            for (int sa = -1; sa <= 1; sa += 2)
-                for (int sb = -1; sb <= 1; sb += 2) {
-                    const Coord ea = axisStep(a, sa), eb = axisStep(b, sb), d = ea + eb;
-                    const unsigned corners = unsigned(at(0, 0, 0)) | unsigned(at(ea.x(), ea.y(), ea.z())) << 1 |
-                                             unsigned(at(eb.x(), eb.y(), eb.z())) << 2 | unsigned(at(d.x(), d.y(), d.z())) << 3;
-                    euler += cornerComponents(corners, 2);
-                }
-    for (int sz = -1; sz <= 1; sz += 2)
-        for (int sy = -1; sy <= 1; sy += 2)
-            for (int sx = -1; sx <= 1; sx += 2) {
-                unsigned corners = 0;
-                for (int i = 0; i < 8; ++i) corners |= unsigned(at(i & 1 ? sx : 0, i & 2 ? sy : 0, i & 4 ? sz : 0)) << i;
-                euler -= cornerComponents(corners, 3);
-            }
-    return euler;
 }
 
 struct Join {
@@ -245,28 +166,14 @@ bool near(const Coord& n, const Coord& m) {
 } // namespace
 
 bool joinsBubbleOnly(const bool inside[27], int lone) {
-    bool state[27];
-    std::copy(inside, inside + 27, state);
-    if (lone < 0 || lone >= 27 || stepsFromCentre(lone) != 1 || !state[lone]) return false;
-    // The centre's other inside neighbours across faces must lie in one piece of the block
-    // (joined along edges, around neither the centre nor the node): the centre then joins that
-    // piece and the node's, no two ends of one piece (a handle).
-    std::uint32_t rest = 0, faces = 0;
-    for (int i = 0; i < 27; ++i) {
-        if (i == 13 || i == lone || !state[i]) continue;
-        rest |= 1u << i;
-        if (stepsFromCentre(i) == 1) faces |= 1u << i;
-    }
-    if (!faces) return false;
-    std::uint32_t piece = faces & (~faces + 1);
-    for (std::uint32_t next = grow(piece, rest); next != piece; next = grow(piece, rest)) piece = next;
-    if ((faces & ~piece) != 0) return false;
-    // Two pieces become one: the inside's Euler characteristic drops by the bubble's 1, unless
-    // the centre also closes a handle or a cavity of the piece.
-    state[13] = false;
-    const int before = starEuler(state);
-    state[13] = true;
-    return starEuler(state) - before == 1;
+    if (lone < 0 || lone >= 27 || lone == 13 || !inside[lone]) return false;
+    const Coord o = blockOffset(lone);
+    if (std::abs(o.x()) + std::abs(o.y()) + std::abs(o.z()) != 1) return false;
+    // The centre's other inside neighbours across faces must lie in one piece of the block: the
+    // centre then joins that piece and the node's, not two ends of one piece (a handle); and the
+    // inside's Euler characteristic drops by the bubble's 1, unless the centre also closes a
+    // handle or fills a cavity.
+    return insidePiecesAtCentre(inside, lone) == 1 && insideEulerChange(inside) == -1;
 }
 
 std::vector<Vec3i> joinLoneNodes(const Field& field, const Lattice& lattice, const ThinSearchOptions& options,

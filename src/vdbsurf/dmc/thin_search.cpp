@@ -612,7 +612,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
     // diagonal partner (noisy fog resampled to 2 voxels a cell: with 100, the thin search took
     // 1.5 times as long). The paths round a crossing of random wires mostly took fewer (with 12
     // or 16, one in 120 more was missed; with 100, 4 of 120 crossings in pieces instead of 8).
-    constexpr int kLatticeJoinSteps = 4, kLatticeJoinWidth = 2 * kLatticeJoinSteps + 1, kLatticeJoinPath = 6;
+    constexpr int kLatticeJoinSteps = 4, kLatticeJoinWidth = 2 * kLatticeJoinSteps + 1, kLatticeJoinPath = 8;
     constexpr EdgeRuns::JoinReach kBentReach{1.0, 24};
     tbb::enumerable_thread_specific<std::uint64_t> bridgeSamples(0);
     std::uint64_t samplesAfter = 0;
@@ -668,7 +668,12 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // a square of the truss, and was not bridged; the square's loop broke there (7 of
                 // 10 random trusses lost one to four of their 28 loops when any path in the window
                 // counted). With paths of 4 steps, notches about a cell deep lost their concave
-                // corners (bridged across: the path round the notch's floor is longer).
+                // corners (bridged across: the path round the notch's floor is longer). With 6, a
+                // torus in a grid of sheared, unequal voxels, meshed at 2.8 of its smallest, got a
+                // second handle: its tube, two cells across one axis of the lattice, had nodes the
+                // lattice joined by 7 steps round a notch of the outside, and a bent path bridged
+                // them; such grids at their own voxel size kept a bubble at a box's edge (2 of 80
+                // random affine grids; none with 8, and random thin formulas' topology unchanged).
                 std::vector<double> window;
                 auto latticeJoins = [&](const Vec3i& q) {
                     if (window.empty()) {
