@@ -35,6 +35,35 @@ struct Join {
     Vec3f offset;
 };
 
+// A face of a lone node with an inside node across its diagonal: its two outside corners, and the
+// value and place of the field's bilinear saddle on it (face coordinates u towards ea, v towards
+// eb, the lone node at (0, 0)). Values g are below zero inside.
+struct SaddleFace {
+    double value, u, v;
+    Coord ea, eb;
+};
+
+// The face's saddle, from the values at the lone node, its corners ea and eb, and the node across.
+SaddleFace saddleOf(double gn, double ga, double gb, double gd, const Coord& ea, const Coord& eb) {
+    const double den = gn - ga - gb + gd; // < 0: n and d inside, a and b not
+    return {(gn * gd - ga * gb) / den, (gn - gb) / den, (gn - ga) / den, ea, eb};
+}
+
+// The points of the quarter [u0, u0 + 1/2] x [v0, v0 + 1/2] of face f (one outside corner's Ω) to
+// try, nearest the saddle first: the quarter's point nearest it, then an m x m grid of points.
+std::vector<std::pair<double, double>> quarterPoints(const SaddleFace& f, double u0, double v0, int m) {
+    std::vector<std::pair<double, std::pair<double, double>>> byDistance;
+    for (int i = 0; i < m; ++i)
+        for (int j = 0; j < m; ++j) {
+            const double u = u0 + 0.5 * (i + 0.5) / m, v = v0 + 0.5 * (j + 0.5) / m;
+            byDistance.push_back({(u - f.u) * (u - f.u) + (v - f.v) * (v - f.v), {u, v}});
+        }
+    std::stable_sort(byDistance.begin(), byDistance.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+    std::vector<std::pair<double, double>> points{{std::clamp(f.u, u0, u0 + 0.5), std::clamp(f.v, v0, v0 + 0.5)}};
+    for (const auto& p : byDistance) points.push_back(p.second);
+    return points;
+}
+
 class LoneJoiner {
 public:
     LoneJoiner(const Field& field, const Lattice& lattice, const ThinSearchOptions& options)
@@ -57,25 +86,18 @@ public:
         for (int k = 0; k < 6; ++k)
             if (insideNow(axisStep(k / 2, k % 2 ? 1 : -1))) return std::nullopt;
 
-        struct Face {
-            double saddleValue, u, v; // the bilinear saddle's value and place (u towards ea, v towards eb)
-            Coord ea, eb;
-        };
-        std::vector<Face> faces;
+        std::vector<SaddleFace> faces;
         for (int a = 0; a < 3; ++a)
             for (int b = a + 1; b < 3; ++b)
                 for (int sa = -1; sa <= 1; sa += 2)
                     for (int sb = -1; sb <= 1; sb += 2) {
                         const Coord ea = axisStep(a, sa), eb = axisStep(b, sb), d = ea + eb;
                         if (!insideNow(d) || moved(d) || moved(ea) || moved(eb)) continue;
-                        const double gn = g(rest[at(origin)]), ga = g(rest[at(ea)]), gb = g(rest[at(eb)]), gd = g(rest[at(d)]);
-                        const double den = gn - ga - gb + gd; // < 0: n and d inside, a and b not
-                        const double saddle = (gn * gd - ga * gb) / den;
-                        if (!(den < 0) || !(saddle < 0)) continue;
-                        faces.push_back({saddle, (gn - gb) / den, (gn - ga) / den, ea, eb});
+                        const SaddleFace f = saddleOf(g(rest[at(origin)]), g(rest[at(ea)]), g(rest[at(eb)]), g(rest[at(d)]), ea, eb);
+                        if (f.value < 0) faces.push_back(f);
                     }
         // Deepest saddle first; ties in the order above.
-        std::stable_sort(faces.begin(), faces.end(), [](const Face& x, const Face& y) { return x.saddleValue < y.saddleValue; });
+        std::stable_sort(faces.begin(), faces.end(), [](const SaddleFace& x, const SaddleFace& y) { return x.value < y.value; });
 
         const Vec3d nWorld = mFrame.nodeWorld(Vec3i(n.x(), n.y(), n.z()));
         const double h = mFrame.h;
@@ -88,7 +110,7 @@ public:
             }
             return true;
         };
-        for (const Face& f : faces) {
+        for (const SaddleFace& f : faces) {
             const Coord d = f.ea + f.eb;
             // Each outside corner may move within its quarter of the face (its Ω): the corner
             // whose quarter holds the saddle, or lies nearer it, first.
@@ -105,20 +127,10 @@ public:
             if (corners[1].distance < corners[0].distance) std::swap(corners[0], corners[1]);
             for (const Corner& c : corners) {
                 if (!joinsWithoutOtherChange(c.offset, insideNow)) continue;
-                // Points of the quarter, the one nearest the saddle first, then a grid of them.
-                std::vector<std::pair<double, std::pair<double, double>>> points;
-                const double cu = std::clamp(f.u, c.u0, c.u0 + 0.5), cv = std::clamp(f.v, c.v0, c.v0 + 0.5);
-                points.push_back({0.0, {cu, cv}});
-                for (int i = 0; i < mSteps; ++i)
-                    for (int j = 0; j < mSteps; ++j) {
-                        const double u = c.u0 + 0.5 * (i + 0.5) / mSteps, v = c.v0 + 0.5 * (j + 0.5) / mSteps;
-                        points.push_back({(u - f.u) * (u - f.u) + (v - f.v) * (v - f.v), {u, v}});
-                    }
-                std::stable_sort(points.begin() + 1, points.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
                 const Vec3d cornerWorld = world(c.offset);
                 const Vec3d ea(f.ea.x(), f.ea.y(), f.ea.z()), eb(f.eb.x(), f.eb.y(), f.eb.z());
-                for (const auto& point : points) {
-                    const Vec3d target = nWorld + (ea * point.second.first + eb * point.second.second) * h;
+                for (const auto& [u, v] : quarterPoints(f, c.u0, c.v0, mSteps)) {
+                    const Vec3d target = nWorld + (ea * u + eb * v) * h;
                     const std::optional<Vec3f> offset = offsetInOmega(target - cornerWorld, h);
                     if (!offset) continue;
                     const Vec3d to = cornerWorld + Vec3d(*offset);
