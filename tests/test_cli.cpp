@@ -376,6 +376,26 @@ TEST_CASE("a camera frustum's grid is listed as one, meshed on its voxels and ma
     CHECK(cmp.output.find("frustum's smallest voxels") != std::string::npos);
 }
 
+TEST_CASE("mesh says how many lone nodes DMC joined, in its log and its stats") {
+    // A voxel alone inside beside a post's top, the grid's face between them joined at its saddle:
+    // marching cubes leaves it a bubble of its own, DMC joins it (test_dmc_lone_nodes.cpp).
+    test::TempDir dir;
+    test::writeGrids(dir.path("post.vdb"), {test::loneNodeBesidePost(0.5f, false)});
+    const auto r = runVdbsurf({"mesh", dir.path("post.vdb"), "-o", dir.path("post.obj"), "--stats", dir.path("post.json")});
+    INFO(r.output);
+    REQUIRE(r.exitCode == 0);
+    CHECK(r.output.find("1 nodes moved into thin parts (1 of them to join a node alone inside to the rest across a face)") !=
+          std::string::npos);
+    CHECK(nlohmann::json::parse(test::readFile(dir.path("post.json")))["dmc"]["nodes_moved_lone_joins"] == 1);
+    CHECK(countComponents(readMesh(dir.path("post.obj"))) == 1);
+    // Without the thin search, as marching cubes: the bubble stays, and the log does not say it.
+    const auto apart = runVdbsurf({"mesh", dir.path("post.vdb"), "-o", dir.path("apart.obj"), "--no-thin", "--stats", dir.path("apart.json")});
+    REQUIRE(apart.exitCode == 0);
+    CHECK(apart.output.find("alone inside") == std::string::npos);
+    CHECK(nlohmann::json::parse(test::readFile(dir.path("apart.json")))["dmc"]["nodes_moved_lone_joins"] == 0);
+    CHECK(countComponents(readMesh(dir.path("apart.obj"))) == 2);
+}
+
 TEST_CASE("Ctrl-C stops every long command: exit 130, one message, no output file") {
     // SIGINT half a second in (as a terminal's Ctrl-C or a farm's SIGTERM would come); each job
     // below runs for 10 s or more here (up to 2.4 GB). patches ran on and wrote its files.

@@ -18,32 +18,6 @@ using namespace vdbsurf;
 
 namespace {
 
-// A slab of inside voxels with a post on it, and a voxel alone inside beside the post's top,
-// across the diagonal of a face whose two other corners hold `between`. Values are written as g
-// (negative inside): a level set holds g, a fog 0.5 - g / 4 (inside above its iso 0.5). `more`:
-// further inside voxels.
-GridBasePtr loneBesidePost(float between, bool fog, std::initializer_list<openvdb::Coord> more = {}) {
-    auto grid = openvdb::FloatGrid::create(fog ? 0.0f : 1.0f);
-    grid->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
-    grid->setGridClass(fog ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_LEVEL_SET);
-    auto acc = grid->getAccessor();
-    auto put = [&](const openvdb::Coord& c, float g) { acc.setValue(c, fog ? 0.5f - 0.25f * g : g); };
-    // Every voxel of the box around the shape is active, so that the grid's domain holds it.
-    for (int x = 0; x <= 16; ++x)
-        for (int y = 0; y <= 16; ++y)
-            for (int z = 0; z <= 12; ++z) put({x, y, z}, 1.0f);
-    for (int x = 2; x <= 14; ++x)
-        for (int y = 2; y <= 14; ++y)
-            for (int z = 2; z <= 4; ++z) put({x, y, z}, -1.0f);
-    put({8, 9, 5}, -1.0f);
-    put({8, 9, 6}, -1.0f);            // the post's top, d
-    put({8, 8, 7}, -1.0f);            // the lone node, n
-    put({8, 9, 7}, between);          // a
-    put({8, 8, 6}, between);          // b
-    for (const openvdb::Coord& c : more) put(c, -1.0f);
-    return grid;
-}
-
 Mesh meshGrid(const GridBasePtr& grid, MeshMethod method, MeshReport& report) {
     const GridField field(grid, "post");
     MeshRequest request;
@@ -58,22 +32,22 @@ TEST_CASE("a node alone inside joins the inside across a face whose saddle is in
         INFO((fog ? "fog" : "level set"));
         // Saddle (gn gd - ga gb) / (gn - ga - gb + gd) = (1 - 0.25) / -3: inside.
         MeshReport mcReport, dmcReport;
-        const Mesh mc = meshGrid(loneBesidePost(0.5f, fog), MeshMethod::MarchingCubes, mcReport);
+        const Mesh mc = meshGrid(test::loneNodeBesidePost(0.5f, fog), MeshMethod::MarchingCubes, mcReport);
         CHECK(countComponents(mc) == 2); // marching cubes: the node's bubble beside the rest
-        const Mesh dmc = meshGrid(loneBesidePost(0.5f, fog), MeshMethod::Dmc, dmcReport);
+        const Mesh dmc = meshGrid(test::loneNodeBesidePost(0.5f, fog), MeshMethod::Dmc, dmcReport);
         CHECK(dmcReport.thinLoneJoined == 1);
         CHECK(checkTopology(dmc).closedManifoldOriented());
         CHECK(test::piecesWithoutHandles(dmc, 1));
         {
             ThreadLimit one(1);
             MeshReport r;
-            const Mesh serial = meshGrid(loneBesidePost(0.5f, fog), MeshMethod::Dmc, r);
+            const Mesh serial = meshGrid(test::loneNodeBesidePost(0.5f, fog), MeshMethod::Dmc, r);
             CHECK(serial.points == dmc.points);
             CHECK(serial.indices == dmc.indices);
         }
         // Saddle (1 - 4) / -6: outside. The grid's field keeps the node apart, and so does DMC.
         MeshReport apartReport;
-        const Mesh apart = meshGrid(loneBesidePost(2.0f, fog), MeshMethod::Dmc, apartReport);
+        const Mesh apart = meshGrid(test::loneNodeBesidePost(2.0f, fog), MeshMethod::Dmc, apartReport);
         CHECK(apartReport.thinLoneJoined == 0);
         CHECK(test::piecesWithoutHandles(apart, 2));
     }
@@ -82,7 +56,7 @@ TEST_CASE("a node alone inside joins the inside across a face whose saddle is in
 TEST_CASE("a lone node's join goes through the face corner that closes no handle") {
     // An arm from the slab ends beside corner a: put inside, a would join the post's top and
     // the arm, which meet through the slab, a handle. Corner b joins the node alone.
-    const auto grid = loneBesidePost(0.5f, false, {{8, 10, 7}, {8, 11, 7}, {8, 12, 7}, {8, 12, 6}, {8, 12, 5}});
+    const auto grid = test::loneNodeBesidePost(0.5f, false, {{8, 10, 7}, {8, 11, 7}, {8, 12, 7}, {8, 12, 6}, {8, 12, 5}});
     MeshReport report;
     const Mesh dmc = meshGrid(grid, MeshMethod::Dmc, report);
     CHECK(report.thinLoneJoined == 1);

@@ -45,6 +45,29 @@ GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double vo
     return g;
 }
 
+GridBasePtr loneNodeBesidePost(float between, bool fog, const std::vector<std::array<int, 3>>& more) {
+    initializeOpenVdb();
+    auto grid = openvdb::FloatGrid::create(fog ? 0.0f : 1.0f);
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(0.1));
+    grid->setGridClass(fog ? openvdb::GRID_FOG_VOLUME : openvdb::GRID_LEVEL_SET);
+    auto acc = grid->getAccessor();
+    auto put = [&](int x, int y, int z, float g) { acc.setValue(openvdb::Coord(x, y, z), fog ? 0.5f - 0.25f * g : g); };
+    // Every voxel of the box around the shape is active, so that the grid's domain holds it.
+    for (int x = 0; x <= 16; ++x)
+        for (int y = 0; y <= 16; ++y)
+            for (int z = 0; z <= 12; ++z) put(x, y, z, 1.0f);
+    for (int x = 2; x <= 14; ++x)
+        for (int y = 2; y <= 14; ++y)
+            for (int z = 2; z <= 4; ++z) put(x, y, z, -1.0f);
+    put(8, 9, 5, -1.0f);
+    put(8, 9, 6, -1.0f);   // the post's top, d
+    put(8, 8, 7, -1.0f);   // the lone node, n
+    put(8, 9, 7, between); // a
+    put(8, 8, 6, between); // b
+    for (const auto& c : more) put(c[0], c[1], c[2], -1.0f);
+    return grid;
+}
+
 GridBasePtr makeSphereFog(double radius, double ramp, double voxelSize) {
     initializeOpenVdb();
     auto g = openvdb::FloatGrid::create(0.0f);

@@ -4,6 +4,7 @@
 #include "vdbsurf/mesh/mesh.h"
 #include "vdbsurf/vdb/openvdb_fwd.h"
 
+#include <array>
 #include <cstddef>
 #include <functional>
 #include <string>
@@ -20,6 +21,11 @@ GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double vo
 GridBasePtr makeLevelSetFromDistance(const std::function<double(const Vec3d&)>& sdf, const Box3& box, double voxelSize);
 // Fog volume: 1 inside the sphere, smooth ramp to 0 over `ramp` world units outside.
 GridBasePtr makeSphereFog(double radius, double ramp, double voxelSize);
+// A slab of inside voxels (0.1 apart) with a post on it, and a voxel alone inside beside the
+// post's top, across the diagonal of a face whose two other corners hold `between`. Values are
+// written as g (negative inside): a level set holds g, a fog 0.5 - g / 4 (inside above its iso
+// 0.5). `more`: further inside voxels (index coordinates).
+GridBasePtr loneNodeBesidePost(float between, bool fog, const std::vector<std::array<int, 3>>& more = {});
 
 // A fresh empty folder under the system temp folder, removed when the object dies.
 class TempDir {

@@ -18,12 +18,12 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
-#include <tuple>
 #include <chrono>
+#include <cmath>
 #include <functional>
 #include <memory>
 #include <numeric>
-#include <cmath>
+#include <tuple>
 
 namespace vdbsurf {
 
