@@ -478,19 +478,17 @@ TEST_CASE("a frustum or stretched grid whose smallest voxels are below what Open
     }
 }
 
-TEST_CASE("a torus in a grid of sheared, unequal voxels keeps its one handle") {
-    // Found among random affine grids: voxels 0.086 x 0.061 x 0.036, sheared and turned. Meshed at
-    // 0.0994 (2.8 of its smallest voxel), the tube is two cells across one of the lattice's axes,
-    // and bridging once joined two of its nodes that the lattice joins 7 steps round: a second
-    // handle (marching cubes keeps one).
-    const double hmin = 0.036009985115251199;
-    const double rows[3][3] = {{0.52581654084267304, -1.9635254671647411, 1.2362350713192531},
-                               {0.19331612429368988, 1.3124060505207882, 1.0554166093944328},
-                               {-0.95599464837098569, -0.077928565008704959, 0.28284513614647699}};
+namespace {
+
+// A level set of `sdf` (world units) on a grid whose transform is the affine map of these rows
+// (times hmin) and translation, over the world box [-1, 1]^3, as random affine grids were made.
+GridBasePtr affineLevelSet(const double rows[3][3], double hmin, const openvdb::Vec3d& translation,
+                           const std::function<double(const openvdb::Vec3d&)>& sdf) {
+    initializeOpenVdb();
     openvdb::Mat4d m = openvdb::Mat4d::identity();
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) m(i, j) = rows[i][j] * hmin;
-    m.setTranslation(openvdb::Vec3d(0.10988372153474872, -0.18662979502166982, -0.14708437574781349));
+    m.setTranslation(translation);
     const auto xf = openvdb::math::Transform::createLinearTransform(m);
     const double band = 3 * std::max({xf->voxelSize()[0], xf->voxelSize()[1], xf->voxelSize()[2]});
     auto grid = openvdb::FloatGrid::create(float(band));
@@ -504,12 +502,30 @@ TEST_CASE("a torus in a grid of sheared, unequal voxels keeps its one handle") {
     }
     auto acc = grid->getAccessor();
     for (auto it = box.begin(); it; ++it) {
-        const openvdb::Vec3d p = xf->indexToWorld(*it);
-        const double ring = std::sqrt(p.x() * p.x() + p.y() * p.y()) - 0.6, d = std::sqrt(ring * ring + p.z() * p.z()) - 0.25;
+        const double d = sdf(xf->indexToWorld(*it));
         if (std::fabs(d) < band) acc.setValue(*it, float(d));
     }
     openvdb::tools::signedFloodFill(grid->tree());
-    const GridField field(grid, "torus");
+    return grid;
+}
+
+} // namespace
+
+TEST_CASE("a torus in a grid of sheared, unequal voxels keeps its one handle") {
+    // Found among random affine grids: voxels 0.086 x 0.061 x 0.036, sheared and turned. Meshed at
+    // 0.0994 (2.8 of its smallest voxel), the tube is two cells across one of the lattice's axes,
+    // and bridging once joined two of its nodes that the lattice joins 7 steps round: a second
+    // handle (marching cubes keeps one).
+    const double rows[3][3] = {{0.52581654084267304, -1.9635254671647411, 1.2362350713192531},
+                               {0.19331612429368988, 1.3124060505207882, 1.0554166093944328},
+                               {-0.95599464837098569, -0.077928565008704959, 0.28284513614647699}};
+    const GridField field(affineLevelSet(rows, 0.036009985115251199,
+                                         openvdb::Vec3d(0.10988372153474872, -0.18662979502166982, -0.14708437574781349),
+                                         [](const openvdb::Vec3d& p) {
+                                             const double ring = std::sqrt(p.x() * p.x() + p.y() * p.y()) - 0.6;
+                                             return std::sqrt(ring * ring + p.z() * p.z()) - 0.25;
+                                         }),
+                          "torus");
     for (const MeshMethod method : {MeshMethod::Dmc, MeshMethod::MarchingCubes}) {
         MeshReport report;
         const Mesh mesh = meshGrid(field, method, 0.099363, report);
@@ -517,5 +533,35 @@ TEST_CASE("a torus in a grid of sheared, unequal voxels keeps its one handle") {
         CHECK(checkTopology(mesh).closedManifoldOriented());
         CHECK(countComponents(mesh) == 1);
         CHECK(test::eulerCharacteristic(mesh) == 0);
+    }
+}
+
+TEST_CASE("a box in a grid of sheared, unequal voxels has no bubble at its edges") {
+    // Found among random affine grids, meshed on their own voxels: beside an edge of the box a
+    // voxel inside by a sliver has no inside neighbour across a face, and marching cubes (and
+    // volumeToMesh) leave it a bubble of its own; the grid's face joins it to its neighbour across
+    // the face's diagonal, and so does DMC (lone_nodes.h).
+    auto box = [](const openvdb::Vec3d& p) {
+        const openvdb::Vec3d d(std::fabs(p.x()) - 0.5, std::fabs(p.y()) - 0.4, std::fabs(p.z()) - 0.3);
+        const openvdb::Vec3d o(std::max(d.x(), 0.0), std::max(d.y(), 0.0), std::max(d.z(), 0.0));
+        return o.length() + std::min(std::max({d.x(), d.y(), d.z()}), 0.0);
+    };
+    const double first[3][3] = {{1.2257725353259281, 0.75466887715228126, -0.38571447670083031},
+                                {0.44243969710418474, -0.46980000625254809, -0.76389467111079068},
+                                {-1.0775092773997934, 1.324221571052187, -0.83334303502972062}};
+    const double second[3][3] = {{-0.34033343043959863, 1.5461834919811732, -0.57475078415387482},
+                                 {1.7315188367600041, 0.36028222485259842, -1.148096992490552},
+                                 {0.51433751499830638, 0.39597919425594502, 0.76069533874066775}};
+    const GridBasePtr grids[2] = {
+        affineLevelSet(first, 0.050952617627694728, openvdb::Vec3d(-0.25899154165740079, -0.11527236729770765, 0.038651707202225258), box),
+        affineLevelSet(second, 0.029676295169860117, openvdb::Vec3d(0.19706479590050066, -0.098046144758099307, -0.11284946408188337), box)};
+    for (const GridBasePtr& grid : grids) {
+        const GridField field(grid, "box");
+        MeshReport mcReport, report;
+        CHECK(countComponents(meshGrid(field, MeshMethod::MarchingCubes, 0, mcReport)) == 2);
+        const Mesh mesh = meshGrid(field, MeshMethod::Dmc, 0, report);
+        CHECK(report.thinLoneJoined == 1);
+        CHECK(checkTopology(mesh).closedManifoldOriented());
+        CHECK(test::piecesWithoutHandles(mesh, 1));
     }
 }
