@@ -1,8 +1,11 @@
 #include "vdbsurf/dmc/inside_topology.h"
 
+#include "vdbsurf/dmc/cube_table.h"
+
 #include <algorithm>
 #include <cstdint>
 #include <cstdlib>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -98,7 +101,118 @@ int starEuler(const bool inside[27]) {
     return euler;
 }
 
+int blockIndex(const Vec3i& p) { return p.x + 3 * p.y + 9 * p.z; }
+
+// The crossing on the block's lattice edge along `axis` from point (x, y, z) (0 .. 2 each).
+constexpr int kCrossings = 27 * 3;
+int crossingId(int x, int y, int z, int axis) { return (x + 3 * y + 9 * z) * 3 + axis; }
+
+// The vertex the centre's six edges' crossings are welded into.
+constexpr int kCentre = -1;
+
+Vec3i cubeAxisStep(int axis) { return {axis == 0, axis == 1, axis == 2}; }
+
+// The root of item i's set (a union-find over a handful of items).
+int findRoot(std::vector<int>& parent, int i) {
+    while (parent[std::size_t(i)] != i) i = parent[std::size_t(i)] = parent[std::size_t(parent[std::size_t(i)])];
+    return i;
+}
+
+// The pieces and the Euler characteristic of a patch of polygons (loops of vertex ids, 0 or more).
+PatchTopology countPatch(const std::vector<std::vector<int>>& polygons) {
+    int ids = 0;
+    for (const std::vector<int>& p : polygons)
+        for (int v : p) ids = std::max(ids, v + 1);
+    std::vector<int> parent(std::size_t(ids), -1);
+    std::vector<std::pair<int, int>> edges;
+    for (const std::vector<int>& p : polygons)
+        for (std::size_t i = 0; i < p.size(); ++i) {
+            const int a = p[i], b = p[(i + 1) % p.size()];
+            edges.emplace_back(std::min(a, b), std::max(a, b));
+            for (int v : {a, b})
+                if (parent[std::size_t(v)] < 0) parent[std::size_t(v)] = v;
+            const int ra = findRoot(parent, a), rb = findRoot(parent, b);
+            parent[std::size_t(std::max(ra, rb))] = std::min(ra, rb);
+        }
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    PatchTopology out;
+    int vertices = 0;
+    for (std::size_t v = 0; v < parent.size(); ++v) {
+        if (parent[v] < 0) continue;
+        ++vertices;
+        out.pieces += findRoot(parent, int(v)) == int(v);
+    }
+    out.euler = vertices - int(edges.size()) + int(polygons.size());
+    return out;
+}
+
 } // namespace
+
+CentreWeld weldAtCentre(const bool inside[27]) {
+    // The polygons with a crossing at the centre as marching cubes makes them, and once welded:
+    // each a run of crossings from the centre round to it again (a polygon where the centre comes
+    // back gives one run for each time; a run of fewer than three vertices has collapsed).
+    std::vector<std::vector<int>> polygons, runs;
+    std::vector<int> loop;
+    for (int cell = 0; cell < 8; ++cell) {
+        const int cx = cell & 1, cy = (cell >> 1) & 1, cz = (cell >> 2) & 1; // min corner in the block
+        unsigned config = 0;
+        for (int c = 0; c < 8; ++c)
+            if (inside[(cx + (c & 1)) + 3 * (cy + ((c >> 1) & 1)) + 9 * (cz + ((c >> 2) & 1))]) config |= 1u << c;
+        const CubeCase& cc = cubeCase(config);
+        int first = 0;
+        for (int l = 0; l < cc.loopCount; first += cc.loopSize[l], ++l) {
+            std::vector<int> polygon;
+            loop.clear();
+            for (int i = 0; i < cc.loopSize[l]; ++i) {
+                const int e = cc.edges[first + i];
+                const Vec3i from = Vec3i(cx, cy, cz) + cubeEdgeOrigin(e), to = from + cubeAxisStep(cubeEdgeAxis(e));
+                polygon.push_back(crossingId(from.x, from.y, from.z, cubeEdgeAxis(e)));
+                const bool atCentre = blockIndex(from) == 13 || blockIndex(to) == 13;
+                const int id = atCentre ? kCentre : polygon.back();
+                if (loop.empty() || loop.back() != id) loop.push_back(id);
+            }
+            while (loop.size() > 1 && loop.front() == loop.back()) loop.pop_back();
+            const auto at = std::find(loop.begin(), loop.end(), kCentre);
+            if (at == loop.end()) continue;
+            polygons.push_back(std::move(polygon));
+            std::rotate(loop.begin(), at, loop.end());
+            loop.push_back(kCentre);
+            for (std::size_t i = 0; i + 1 < loop.size();) {
+                std::size_t j = i + 1;
+                while (loop[j] != kCentre) ++j;
+                if (j - i >= 3) runs.emplace_back(loop.begin() + std::ptrdiff_t(i), loop.begin() + std::ptrdiff_t(j));
+                i = j;
+            }
+        }
+    }
+    // A pair of runs that are each other reversed folds onto itself (a pillow of no volume): the
+    // weld drops both.
+    std::vector<std::uint8_t> dropped(runs.size(), 0);
+    for (std::size_t a = 0; a < runs.size(); ++a)
+        for (std::size_t b = a + 1; b < runs.size() && !dropped[a]; ++b) {
+            if (dropped[b] || runs[a].size() != runs[b].size()) continue;
+            if (std::equal(runs[a].begin() + 1, runs[a].end(), runs[b].rbegin(), runs[b].rend() - 1)) dropped[a] = dropped[b] = 1;
+        }
+    // Runs sharing an edge at the centre (the crossing next to it on either side) are one fan,
+    // and each fan gets a vertex of its own, as the weld splits them.
+    std::vector<int> parent(runs.size());
+    for (std::size_t i = 0; i < runs.size(); ++i) parent[i] = int(i);
+    for (std::size_t a = 0; a < runs.size(); ++a)
+        for (std::size_t b = a + 1; b < runs.size(); ++b) {
+            if (dropped[a] || dropped[b]) continue;
+            const int a0 = runs[a][1], a1 = runs[a].back(), b0 = runs[b][1], b1 = runs[b].back();
+            if (a0 == b0 || a0 == b1 || a1 == b0 || a1 == b1) parent[std::size_t(findRoot(parent, int(a)))] = findRoot(parent, int(b));
+        }
+    std::vector<std::vector<int>> welded;
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+        if (dropped[i]) continue;
+        welded.push_back(runs[i]);
+        welded.back()[0] = kCrossings + findRoot(parent, int(i));
+    }
+    return {countPatch(polygons), countPatch(welded)};
+}
 
 int insidePiecesAtCentre(const bool inside[27], int leaveOut) {
     std::uint32_t rest = 0, faces = 0;

@@ -4,7 +4,8 @@
 // diagonal, so its inside is the nodes inside joined along edges, with each face's and each
 // cell's inside corners as many components as their edges make. What putting the centre inside
 // does to that is counted here: the pieces it joins, and the change of the Euler characteristic
-// that says whether it also closes a handle or fills a cavity (lone_nodes.h).
+// that says whether it also closes a handle or fills a cavity (lone_nodes.h); and what putting
+// the centre on the surface does to the surface around it (sharp_features.cpp).
 #pragma once
 
 namespace vdbsurf {
@@ -21,5 +22,25 @@ int insidePiecesAtCentre(const bool inside[27], int leaveOut = -1);
 // closing a loop (a handle) or filling a cavity takes one more each, filling a hole that a piece
 // goes round (a handle gone) or shutting a cavity in gives one back.
 int insideEulerChange(const bool inside[27]);
+
+// What welding the crossings of the centre's six edges into it does to the surface around it,
+// as the mesher's weld does where the node is placed on the surface (a sharp feature). The patch
+// is the marching-cubes polygons of the eight cells around the centre (the centre on the side
+// its own entry gives) with a crossing on one of those edges; welded, they are pinched where the
+// centre comes back, those of fewer than three vertices and pairs folded onto each other go, and
+// the fans that meet at the centre (polygons joined across edges there) get a vertex each, as
+// the weld splits them. Where the patch's pieces and Euler characteristic stay, so does the
+// surface's topology: two sheets of a thin gap made to touch at the node are two fans where
+// they were two discs. Where they change, the weld cuts the surface: a tube of marching cubes'
+// surface running through the node comes apart there (an annulus becomes two discs).
+struct PatchTopology {
+    int pieces = 0, euler = 0;
+    bool operator==(const PatchTopology& o) const { return pieces == o.pieces && euler == o.euler; }
+};
+struct CentreWeld {
+    PatchTopology before, after;
+    bool keepsTopology() const { return before == after; }
+};
+CentreWeld weldAtCentre(const bool inside[27]);
 
 } // namespace vdbsurf

@@ -6,6 +6,7 @@
 #include "vdbsurf/core/prefault.h"
 #include "vdbsurf/dmc/cube_table.h"
 #include "vdbsurf/dmc/edge_runs.h"
+#include "vdbsurf/dmc/inside_topology.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/sampled_planes.h"
@@ -907,6 +908,20 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         if (flip) return groupsAround(now, true, 6) > 1 || groupsAround(now, false, 18) > 1;
         return groupsAround(now, p.inside, p.inside ? 18 : 26) > 1;
     };
+    // Counted loosely, a node's side can meet round it across a diagonal that marching cubes
+    // never joins: a wedge's thin edge, a row of inside nodes beside the solid, joined to it
+    // beyond the node only along the row, came off as a piece of its own (welded, the row's
+    // tube met the node from both ends: two fans, split apart; 1 of 70 random wedges). So a node
+    // that keeps its side must also leave the topology of the surface round it as it was once
+    // its crossings are welded into it (weldAtCentre; a flipped node is joined by bridging after).
+    auto pinches = [&](const Proposal& p, std::uint32_t atRest) {
+        const std::uint32_t now = sidesNow(p.node, atRest);
+        bool sides[27];
+        for (int k = 0; k < 27; ++k) sides[k] = (now >> k) & 1u;
+        sides[13] = p.inside;
+        const CentreWeld weld = weldAtCentre(sides);
+        return !weld.keepsTopology();
+    };
 
     std::vector<std::uint8_t> keepsFaces;
     const std::vector<std::uint32_t> insideAround = sampleNeighbours(all, &keepsFaces);
@@ -928,7 +943,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // whose neighbours on the rim went into the crack, flipped onto the rim's edge, made a
         // tunnel under it in 11 of 120 random cracks 0.2-0.5 H wide, 3 of 60 at 0.5-1 H).
         const bool flip = otherSide == 0;
-        if (otherSide == 6 || sharesCrossing || !keepsFaces[i] || (flip && takenAcross) || splitsLink(p, flip, insideAround[i])) {
+        if (otherSide == 6 || sharesCrossing || !keepsFaces[i] || (flip && takenAcross) || splitsLink(p, flip, insideAround[i]) ||
+            (!flip && pinches(p, insideAround[i]))) {
             ++out.rejected;
             continue;
         }
@@ -1082,7 +1098,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     for (std::size_t i = 0; i < along.size(); ++i) {
         bool sharesCrossing = false, takenAcross = false;
         const int otherSide = neighbourSides(along[i], alongAround[i], sharesCrossing, takenAcross);
-        if (otherSide == 0 || otherSide == 6 || sharesCrossing) continue;
+        if (otherSide == 0 || otherSide == 6 || sharesCrossing || pinches(along[i], alongAround[i])) continue;
         place(along[i], along[i].inside);
         ++out.nodesAlongEdges;
     }
