@@ -1,5 +1,7 @@
-// A node placed on a sharp feature is a vertex where the crossings of its edges are welded: the
-// sharp pass places it only where that weld leaves the surface's topology around it as it was.
+// The sharp pass's topology checks: a node placed on a sharp feature is a vertex where the
+// crossings of its edges are welded, placed only where that weld leaves the surface's topology
+// around it as it was; and flips whose bridges change the inside's Euler characteristic are undone
+// (insideEulerAround counts it over the lattice).
 #include "support/formula_text.h"
 #include "support/test_support.h"
 
@@ -16,8 +18,10 @@
 #include <array>
 #include <cmath>
 #include <initializer_list>
+#include <cstdlib>
 #include <random>
 #include <string>
+#include <vector>
 
 using namespace vdbsurf;
 using test::num;
@@ -80,6 +84,36 @@ TEST_CASE("welding a node's crossings into it keeps the surface's topology unles
     w = weldAtCentre(solid.data());
     CHECK(w.before == PatchTopology{0, 0});
     CHECK(w.keepsTopology());
+}
+
+TEST_CASE("the inside's Euler characteristic around changed nodes changes as the inside's topology does") {
+    // One node: the same change as the block count gives, for random blocks.
+    std::mt19937 rng(77);
+    std::bernoulli_distribution coin(0.5);
+    for (int trial = 0; trial < 500; ++trial) {
+        std::array<bool, 27> b{};
+        for (bool& v : b) v = coin(rng);
+        auto side = [&](bool centre) {
+            return [&b, centre](const Vec3i& n) {
+                if (n == Vec3i(0, 0, 0)) return centre;
+                if (std::abs(n.x) > 1 || std::abs(n.y) > 1 || std::abs(n.z) > 1) return false;
+                return b[std::size_t((n.x + 1) + 3 * (n.y + 1) + 9 * (n.z + 1))];
+            };
+        };
+        const std::vector<Vec3i> centre{Vec3i(0, 0, 0)};
+        INFO("trial " << trial);
+        CHECK(insideEulerAround(centre, side(false)) - insideEulerAround(centre, side(true)) == insideEulerChange(b.data()));
+    }
+    // Two nodes that close a ring of eight round an outside node: a handle, one lower (the
+    // compactly supported count is the inside's own, negated: +1).
+    auto ring = [](bool closed) {
+        return [closed](const Vec3i& n) {
+            if (n.z != 0 || std::abs(n.x) > 1 || std::abs(n.y) > 1 || n == Vec3i(0, 0, 0)) return false;
+            return closed || n.y != -1 || n.x == -1;
+        };
+    };
+    const std::vector<Vec3i> gap{Vec3i(0, -1, 0), Vec3i(1, -1, 0)};
+    CHECK(insideEulerAround(gap, ring(true)) - insideEulerAround(gap, ring(false)) == 1);
 }
 
 namespace {

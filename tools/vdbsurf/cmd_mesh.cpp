@@ -233,6 +233,7 @@ void runMesh(const MeshOptions& o) {
                            {"nodes_on_edges_second_round", rep.nodesAlongEdges},
                            {"nodes_on_corners", rep.nodesOnCorners},
                            {"nodes_flipped", rep.nodesFlipped},
+                           {"nodes_flips_undone", rep.flipsUndone},
                            {"sharp_unresolved_leaves", rep.unresolvedLeaves},
                            {"welded_vertices", rep.weldedVertices},
                            {"collapsed_polygons", rep.collapsedPolygons},

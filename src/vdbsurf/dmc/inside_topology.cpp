@@ -3,6 +3,7 @@
 #include "vdbsurf/dmc/cube_table.h"
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <cstdlib>
 #include <vector>
@@ -212,6 +213,45 @@ CentreWeld weldAtCentre(const bool inside[27]) {
         welded.back()[0] = kCrossings + findRoot(parent, int(i));
     }
     return {countPatch(polygons), countPatch(welded)};
+}
+
+int insideEulerAround(const std::vector<Vec3i>& nodes, const std::function<bool(const Vec3i&)>& inside) {
+    // Each element once, by its min corner and (edges, faces) an axis: along the edge, across the
+    // face.
+    std::vector<std::array<int, 4>> vertices, edges, faces, cells;
+    for (const Vec3i& n : nodes) {
+        vertices.push_back({n.x, n.y, n.z, 0});
+        for (int a = 0; a < 3; ++a) {
+            const Vec3i step = cubeAxisStep(a);
+            for (const Vec3i& from : {n, n - step}) edges.push_back({from.x, from.y, from.z, a});
+            const Vec3i u = cubeAxisStep((a + 1) % 3), v = cubeAxisStep((a + 2) % 3);
+            for (int k = 0; k < 4; ++k) {
+                const Vec3i from = n - (k & 1 ? u : Vec3i(0, 0, 0)) - (k & 2 ? v : Vec3i(0, 0, 0));
+                faces.push_back({from.x, from.y, from.z, a});
+            }
+        }
+        for (int k = 0; k < 8; ++k) cells.push_back({n.x - (k & 1), n.y - ((k >> 1) & 1), n.z - ((k >> 2) & 1), 0});
+    }
+    for (auto* list : {&vertices, &edges, &faces, &cells}) {
+        std::sort(list->begin(), list->end());
+        list->erase(std::unique(list->begin(), list->end()), list->end());
+    }
+    auto at = [&](const std::array<int, 4>& e, const Vec3i& offset) { return inside(Vec3i(e[0], e[1], e[2]) + offset); };
+    int euler = 0;
+    for (const auto& n : vertices) euler += at(n, Vec3i(0, 0, 0));
+    for (const auto& e : edges) euler -= at(e, Vec3i(0, 0, 0)) || at(e, cubeAxisStep(e[3]));
+    for (const auto& f : faces) {
+        const Vec3i u = cubeAxisStep((f[3] + 1) % 3), v = cubeAxisStep((f[3] + 2) % 3);
+        unsigned corners = 0;
+        for (int k = 0; k < 4; ++k) corners |= unsigned(at(f, (k & 1 ? u : Vec3i(0, 0, 0)) + (k & 2 ? v : Vec3i(0, 0, 0)))) << k;
+        euler += cornerComponents(corners, 2);
+    }
+    for (const auto& c : cells) {
+        unsigned corners = 0;
+        for (int k = 0; k < 8; ++k) corners |= unsigned(at(c, Vec3i(k & 1, (k >> 1) & 1, (k >> 2) & 1))) << k;
+        euler -= cornerComponents(corners, 3);
+    }
+    return euler;
 }
 
 int insidePiecesAtCentre(const bool inside[27], int leaveOut) {

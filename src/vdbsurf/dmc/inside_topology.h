@@ -7,6 +7,10 @@
 // that says whether it also closes a handle or fills a cavity (lone_nodes.h); and what putting
 // the centre on the surface does to the surface around it (sharp_features.cpp).
 #pragma once
+#include "vdbsurf/core/vec3.h"
+
+#include <functional>
+#include <vector>
 
 namespace vdbsurf {
 
@@ -22,6 +26,13 @@ int insidePiecesAtCentre(const bool inside[27], int leaveOut = -1);
 // closing a loop (a handle) or filling a cavity takes one more each, filling a hole that a piece
 // goes round (a handle gone) or shutting a cavity in gives one back.
 int insideEulerChange(const bool inside[27]);
+
+// The same count over the lattice: the compactly supported Euler characteristic of marching
+// cubes' open inside over the nodes, edges, faces and cells that have one of `nodes` as a corner
+// (repeats allowed), `inside` giving each node's side. Between two states that differ only at
+// those nodes, its change is the change of the whole inside's: zero where pieces, handles and
+// cavities stay as they were (or change in ways that cancel, which a few nodes seldom do).
+int insideEulerAround(const std::vector<Vec3i>& nodes, const std::function<bool(const Vec3i&)>& inside);
 
 // What welding the crossings of the centre's six edges into it does to the surface around it,
 // as the mesher's weld does where the node is placed on the surface (a sharp feature). The patch

@@ -231,7 +231,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         placeSharpFeatures(field, lattice, *surface, sh, deformation, &ss);
         const std::vector<Vec3i> centred = request.thin ? centre() : std::vector<Vec3i>();
         const auto t = std::chrono::steady_clock::now();
-        if (ss.flipped > 0 || ss.unhung > 0 || !centred.empty()) {
+        if (ss.flipped > 0 || ss.unhung > 0 || ss.flipsUndone > 0 || !centred.empty()) {
             // Nodes changed side: cell cases changed around them; centred nodes moved their
             // edges. The leaves there are computed again (or, for tests, the whole surface).
             activateCellsAround(lattice, ss.changedNodes);
@@ -255,6 +255,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.nodesAlongEdges = ss.nodesAlongEdges;
         report.nodesOnCorners = ss.nodesOnCorners;
         report.nodesFlipped = ss.flipped;
+        report.flipsUndone = ss.flipsUndone;
         report.secondsSharp = ss.seconds + std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
     }
     if (request.deformedLattice) request.deformedLattice(lattice, deformation, nullptr);

@@ -23,6 +23,8 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <map>
+#include <numeric>
 #include <optional>
 #include <tuple>
 
@@ -289,6 +291,39 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
 }
 
 bool coordLess(const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); }
+
+// The nodes of `a` and `b` together, in groups joined across any corner (each sorted).
+std::vector<std::vector<Vec3i>> changedGroups(const std::vector<Vec3i>& a, const std::vector<Vec3i>& b) {
+    std::vector<Vec3i> nodes = a;
+    nodes.insert(nodes.end(), b.begin(), b.end());
+    std::sort(nodes.begin(), nodes.end(), coordLess);
+    nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+    std::vector<std::size_t> parent(nodes.size());
+    std::iota(parent.begin(), parent.end(), std::size_t(0));
+    auto root = [&](std::size_t i) {
+        while (parent[i] != i) i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+        for (int z = -1; z <= 1; ++z)
+            for (int y = -1; y <= 1; ++y)
+                for (int x = -1; x <= 1; ++x) {
+                    const Vec3i n = nodes[i] + Vec3i(x, y, z);
+                    const auto it = std::lower_bound(nodes.begin(), nodes.end(), n, coordLess);
+                    if (it != nodes.end() && *it == n) parent[root(std::size_t(it - nodes.begin()))] = root(i);
+                }
+    std::vector<std::vector<Vec3i>> groups;
+    std::vector<std::size_t> groupOf(nodes.size(), ~std::size_t(0));
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+        std::size_t& g = groupOf[root(i)];
+        if (g == ~std::size_t(0)) {
+            g = groups.size();
+            groups.emplace_back();
+        }
+        groups[g].push_back(nodes[i]);
+    }
+    return groups;
+}
 
 // The axis neighbours of `nodes` that stand on another side than at rest (moved by the thin search
 // into a thin part, or placed on a feature on the other side), sorted.
@@ -923,6 +958,11 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         return !weld.keepsTopology();
     };
 
+    // The nodes as the thin search left them, for flips undone below.
+    LatticeDeformation before;
+    before.offsets = std::make_shared<OffsetTree>(*deformation.offsets);
+    before.onSurface = std::make_shared<NodeMaskTree>(*deformation.onSurface);
+    before.insideOnSurface = std::make_shared<NodeMaskTree>(*deformation.insideOnSurface);
     std::vector<std::uint8_t> keepsFaces;
     const std::vector<std::uint32_t> insideAround = sampleNeighbours(all, &keepsFaces);
     std::vector<Vec3i> flipped;
@@ -995,6 +1035,56 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         onSurface.clear();
         insideOnSurface.clear();
         for (const auto& m : backToThinSearch) offsets.setValue(m.first, m.second);
+        // Each flip and its bridge make a tip of one side longer, which changes nothing about the
+        // inside's topology. Where flips of both sides meet (a notch under two cells, where the
+        // concave corner's node flips out and the rim's corners' flip in), their bridges can pass
+        // round each other: a handle (7 of 120 random notched boxes). In each group of changed
+        // nodes (joined across any corner) whose changes alter the inside's Euler characteristic,
+        // the nodes that went to one side go back as they were before the flips — the side with
+        // fewer, if that mends it, else the other, else all.
+        for (const std::vector<Vec3i>& group : changedGroups(out.changedNodes, flipped)) {
+            NodeStates now(deformation), was(before);
+            std::map<std::tuple<int, int, int>, bool> restInside;
+            auto atRest = [&](const Vec3i& n) {
+                const auto key = std::make_tuple(n.x, n.y, n.z);
+                const auto it = restInside.find(key);
+                if (it != restInside.end()) return it->second;
+                return restInside[key] = isInside(field.value(frame.nodeWorld(n)), iso, side);
+            };
+            auto insideNow = [&](const Vec3i& n) { return now.inside(Coord(n.x, n.y, n.z), atRest(n)); };
+            auto insideBefore = [&](const Vec3i& n) { return was.inside(Coord(n.x, n.y, n.z), atRest(n)); };
+            const int prior = insideEulerAround(group, insideBefore);
+            if (insideEulerAround(group, insideNow) == prior) continue;
+            std::vector<Vec3i> wentIn, wentOut;
+            for (const Vec3i& n : group)
+                if (insideNow(n) != insideBefore(n)) (insideNow(n) ? wentIn : wentOut).push_back(n);
+            if (wentOut.size() < wentIn.size()) std::swap(wentIn, wentOut);
+            std::vector<Vec3i> undo = group;
+            for (const std::vector<Vec3i>* part : {&wentIn, &wentOut}) {
+                if (part->empty() || part->size() == group.size()) continue;
+                auto mended = [&](const Vec3i& n) {
+                    return std::binary_search(part->begin(), part->end(), n, coordLess) ? insideBefore(n) : insideNow(n);
+                };
+                if (insideEulerAround(group, mended) == prior) {
+                    undo = *part;
+                    break;
+                }
+            }
+            for (const Vec3i& n : undo) {
+                out.flipsUndone += insideNow(n) != insideBefore(n);
+                const Coord c(n.x, n.y, n.z);
+                const auto placed = std::find_if(placedFirst.begin(), placedFirst.end(), [&](const Proposal& p) { return p.node == c; });
+                if (placed != placedFirst.end() && onSurface.isValueOn(c)) (placed->kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) -= 1;
+                const auto f = std::find(flipped.begin(), flipped.end(), n);
+                if (f != flipped.end()) flipped.erase(f);
+                else if (std::binary_search(bridged.begin(), bridged.end(), n, coordLess)) --out.bridged;
+                openvdb::Vec3f offset;
+                if (was.offsets.probeValue(c, offset)) offsets.setValue(c, offset);
+                else offsets.setValueOff(c, openvdb::Vec3f(0.0f));
+                onSurface.setValueOff(c);
+                insideOnSurface.setValueOff(c);
+            }
+        }
     }
 
     // Second round, along edges. One node a cell leaves gaps where an edge runs between nodes

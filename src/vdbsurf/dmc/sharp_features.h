@@ -76,6 +76,9 @@ struct SharpStats {
     // their side, or whose surface the nodes placed around them close off — bubbles: back at rest,
     // among changedNodes.
     std::uint64_t unhung = 0;
+    // Flipped and bridged nodes put back on the side they had before the flips, because together
+    // they changed the inside's topology (among changedNodes).
+    std::uint64_t flipsUndone = 0;
     // The flipped, bridged and unhung nodes (sorted): the cells around them changed case.
     std::vector<Vec3i> changedNodes;
     double seconds = 0;
