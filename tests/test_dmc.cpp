@@ -1207,6 +1207,48 @@ TEST_CASE("notched cubes under two cells deep come out in one piece without a ha
     CHECK(cornersKept >= 19);
 }
 
+TEST_CASE("where the thin search's moves to both sides cross, the shape keeps its genus") {
+    // Found at random (box half-size 0.55, rotated by the rows of A, centred at c). Moves into
+    // the material's tip at a hole's rim and out of it into the hole's concave edge, each right
+    // alone, bridged over each other: a handle; with one side's moves undone, none.
+    auto box = [](const std::array<Vec3d, 3>& A, const Vec3d& c) {
+        std::array<std::string, 3> l;
+        for (int i = 0; i < 3; ++i) l[std::size_t(i)] = test::dotWith(A[std::size_t(i)], c);
+        return l;
+    };
+    const Box3 bounds{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
+    {
+        // A box with a square hole through it, walls 0.267 (3.5 cells): one piece of genus 1.
+        const auto l = box({Vec3d(-0.6805536267888344, -0.6074846237755704, -0.40964520373222685),
+                            Vec3d(0.43028719030376533, -0.7838903000886619, 0.4476258831741067),
+                            Vec3d(-0.593042742915766, 0.12836833450333998, 0.7948722386470568)},
+                           Vec3d(-0.02578739374998982, -0.03202275585683221, -0.02500339191098431));
+        const std::string frame = "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(0.55 - 0.26728706051800954) +
+                                  "-max(abs" + l[0] + ",abs" + l[1] + "))";
+        MeshReport rep;
+        ExpressionField f(frame, bounds);
+        MeshRequest req;
+        req.voxelSize = 0.07581949249887222;
+        const Mesh m = meshField(f, req, rep);
+        requireClosed(m);
+        CHECK(countComponents(m) == 1);
+        CHECK(eulerCharacteristic(m) == 0);
+        CHECK(rep.thinCrossedUndone > 0);
+    }
+    {
+        // A box notched at a corner by 0.22 of its half-size (1 cell): one piece, no handle.
+        const auto l = box({Vec3d(-0.32758392162301697, -0.5583586910458409, -0.7621839321500159),
+                            Vec3d(-0.9262580021109379, 0.03066100978233971, 0.375640807161018),
+                            Vec3d(-0.18637298039023537, 0.8290328549657741, -0.5272282594548195)},
+                           Vec3d(-0.03281732453645733, 0.028037162822652464, 0.008084530023079496));
+        const std::string notched = "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(0.21933541101902126 * 0.55) +
+                                    "-max(abs(" + l[0] + "-0.55),abs(" + l[1] + "-0.55),abs(" + l[2] + "-0.55)))";
+        const Mesh m = meshFormula(notched, bounds, 0.13200461355812582);
+        requireClosed(m);
+        CHECK(piecesWithoutHandles(m, 1));
+    }
+}
+
 TEST_CASE("a concave corner 1.4 cells below a notch's rim is kept, not cut off by bridging") {
     // Found at random: the one outside node beside the corner node was bridged into the solid
     // (to join a node flipped onto the rim), the corner node lost its last crossing, and the

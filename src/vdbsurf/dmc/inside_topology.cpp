@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <cstdlib>
+#include <tuple>
 #include <vector>
 
 namespace vdbsurf {
@@ -252,6 +253,33 @@ int insideEulerAround(const std::vector<Vec3i>& nodes, const std::function<bool(
         euler -= cornerComponents(corners, 3);
     }
     return euler;
+}
+
+std::vector<std::vector<Vec3i>> groupsAcrossCorners(std::vector<Vec3i> nodes) {
+    auto less = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
+    std::sort(nodes.begin(), nodes.end(), less);
+    nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+    std::vector<int> parent(nodes.size());
+    for (std::size_t i = 0; i < nodes.size(); ++i) parent[i] = int(i);
+    for (std::size_t i = 0; i < nodes.size(); ++i)
+        for (int z = -1; z <= 1; ++z)
+            for (int y = -1; y <= 1; ++y)
+                for (int x = -1; x <= 1; ++x) {
+                    const Vec3i n = nodes[i] + Vec3i(x, y, z);
+                    const auto it = std::lower_bound(nodes.begin(), nodes.end(), n, less);
+                    if (it != nodes.end() && *it == n) parent[std::size_t(findRoot(parent, int(it - nodes.begin())))] = findRoot(parent, int(i));
+                }
+    std::vector<std::vector<Vec3i>> groups;
+    std::vector<int> groupOf(nodes.size(), -1);
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+        int& g = groupOf[std::size_t(findRoot(parent, int(i)))];
+        if (g < 0) {
+            g = int(groups.size());
+            groups.emplace_back();
+        }
+        groups[std::size_t(g)].push_back(nodes[i]);
+    }
+    return groups;
 }
 
 int insidePiecesAtCentre(const bool inside[27], int leaveOut) {

@@ -34,6 +34,11 @@ int insideEulerChange(const bool inside[27]);
 // cavities stay as they were (or change in ways that cancel, which a few nodes seldom do).
 int insideEulerAround(const std::vector<Vec3i>& nodes, const std::function<bool(const Vec3i&)>& inside);
 
+// The nodes (repeats allowed) in groups joined across any corner, each sorted (x, then y, then z),
+// groups in the order of their first nodes: groups two steps apart or more share no element of
+// the lattice, so their changes can be counted apart.
+std::vector<std::vector<Vec3i>> groupsAcrossCorners(std::vector<Vec3i> nodes);
+
 // What welding the crossings of the centre's six edges into it does to the surface around it,
 // as the mesher's weld does where the node is placed on the surface (a sharp feature). The patch
 // is the marching-cubes polygons of the eight cells around the centre (the centre on the side

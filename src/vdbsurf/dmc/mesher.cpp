@@ -2,6 +2,7 @@
 
 #include "vdbsurf/core/cancel.h"
 #include "vdbsurf/core/error.h"
+#include "vdbsurf/dmc/crossed_moves.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
 #include "vdbsurf/dmc/sharp_features.h"
@@ -189,12 +190,13 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         ThinSearchStats ts;
         std::vector<Vec3i> loneJoins;
         thinSearch(field, lattice, to, deformation, &ts, &crowded, &loneJoins);
+        auto order = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
+        std::sort(loneJoins.begin(), loneJoins.end(), order);
+        report.thinCrossedUndone = undoCrossedMoves(field, lattice.frame, report.iso, deformation, loneJoins).size();
         activateCellsAroundMovedNodes(lattice, deformation);
         // (Before the sharp pass moves nodes of its own.) A lone node's join is a neck of a few
         // polygons, nothing to simplify (on the armadillo, the simplification's passes over the
         // whole mesh took 8 ms for its one join).
-        auto order = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
-        std::sort(loneJoins.begin(), loneJoins.end(), order);
         for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
             const Vec3i n(it.getCoord().x(), it.getCoord().y(), it.getCoord().z());
             if (!std::binary_search(loneJoins.begin(), loneJoins.end(), n, order)) thinNodes.push_back(n);

@@ -24,7 +24,6 @@
 #include <chrono>
 #include <cmath>
 #include <map>
-#include <numeric>
 #include <optional>
 #include <tuple>
 
@@ -292,38 +291,6 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
 
 bool coordLess(const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); }
 
-// The nodes of `a` and `b` together, in groups joined across any corner (each sorted).
-std::vector<std::vector<Vec3i>> changedGroups(const std::vector<Vec3i>& a, const std::vector<Vec3i>& b) {
-    std::vector<Vec3i> nodes = a;
-    nodes.insert(nodes.end(), b.begin(), b.end());
-    std::sort(nodes.begin(), nodes.end(), coordLess);
-    nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
-    std::vector<std::size_t> parent(nodes.size());
-    std::iota(parent.begin(), parent.end(), std::size_t(0));
-    auto root = [&](std::size_t i) {
-        while (parent[i] != i) i = parent[i] = parent[parent[i]];
-        return i;
-    };
-    for (std::size_t i = 0; i < nodes.size(); ++i)
-        for (int z = -1; z <= 1; ++z)
-            for (int y = -1; y <= 1; ++y)
-                for (int x = -1; x <= 1; ++x) {
-                    const Vec3i n = nodes[i] + Vec3i(x, y, z);
-                    const auto it = std::lower_bound(nodes.begin(), nodes.end(), n, coordLess);
-                    if (it != nodes.end() && *it == n) parent[root(std::size_t(it - nodes.begin()))] = root(i);
-                }
-    std::vector<std::vector<Vec3i>> groups;
-    std::vector<std::size_t> groupOf(nodes.size(), ~std::size_t(0));
-    for (std::size_t i = 0; i < nodes.size(); ++i) {
-        std::size_t& g = groupOf[root(i)];
-        if (g == ~std::size_t(0)) {
-            g = groups.size();
-            groups.emplace_back();
-        }
-        groups[g].push_back(nodes[i]);
-    }
-    return groups;
-}
 
 // The axis neighbours of `nodes` that stand on another side than at rest (moved by the thin search
 // into a thin part, or placed on a feature on the other side), sorted.
@@ -1042,7 +1009,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // nodes (joined across any corner) whose changes alter the inside's Euler characteristic,
         // the nodes that went to one side go back as they were before the flips — the side with
         // fewer, if that mends it, else the other, else all.
-        for (const std::vector<Vec3i>& group : changedGroups(out.changedNodes, flipped)) {
+        std::vector<Vec3i> changed = out.changedNodes;
+        changed.insert(changed.end(), flipped.begin(), flipped.end());
+        for (const std::vector<Vec3i>& group : groupsAcrossCorners(changed)) {
             NodeStates now(deformation), was(before);
             std::map<std::tuple<int, int, int>, bool> restInside;
             auto atRest = [&](const Vec3i& n) {

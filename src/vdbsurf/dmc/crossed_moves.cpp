@@ -1,0 +1,56 @@
+#include "vdbsurf/dmc/crossed_moves.h"
+
+#include "vdbsurf/core/lattice_frame.h"
+#include "vdbsurf/dmc/inside_topology.h"
+#include "vdbsurf/dmc/lattice_deformation.h"
+
+#include <algorithm>
+#include <map>
+#include <tuple>
+
+namespace vdbsurf {
+
+std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& frame, double iso, LatticeDeformation& deformation,
+                                    const std::vector<Vec3i>& keep) {
+    auto less = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
+    std::vector<Vec3i> moved;
+    for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
+        const openvdb::Coord c = it.getCoord();
+        if (!deformation.onSurface->isValueOn(c)) moved.emplace_back(c.x(), c.y(), c.z());
+    }
+    const Inside side = field.inside();
+    std::map<std::tuple<int, int, int>, bool> restInside;
+    auto atRest = [&](const Vec3i& n) {
+        const auto key = std::make_tuple(n.x, n.y, n.z);
+        const auto it = restInside.find(key);
+        if (it != restInside.end()) return it->second;
+        return restInside[key] = isInside(field.value(frame.nodeWorld(n)), iso, side);
+    };
+    std::vector<Vec3i> undone;
+    for (const std::vector<Vec3i>& group : groupsAcrossCorners(moved)) {
+        // (Every node of the group is moved: its side now is the other one.)
+        std::vector<Vec3i> wentIn, wentOut;
+        for (const Vec3i& n : group)
+            if (!std::binary_search(keep.begin(), keep.end(), n, less)) (atRest(n) ? wentOut : wentIn).push_back(n);
+        if (wentIn.empty() || wentOut.empty()) continue;
+        auto inGroup = [&](const Vec3i& n) { return std::binary_search(group.begin(), group.end(), n, less); };
+        // The group's count with the moves of `part` undone (none: all moves as made).
+        auto eulerWithout = [&](const std::vector<Vec3i>* part) {
+            return insideEulerAround(group, [&](const Vec3i& n) {
+                const bool undo = part && std::binary_search(part->begin(), part->end(), n, less);
+                return inGroup(n) && !undo ? !atRest(n) : atRest(n);
+            });
+        };
+        const int rest = insideEulerAround(group, atRest);
+        // Only where each side's moves alone keep the topology and together change it: a thin part
+        // of either side changes the lattice's topology on its own, and that is kept.
+        if (eulerWithout(nullptr) == rest || eulerWithout(&wentIn) != rest || eulerWithout(&wentOut) != rest) continue;
+        const std::vector<Vec3i>& fewer = wentIn.size() <= wentOut.size() ? wentIn : wentOut;
+        for (const Vec3i& n : fewer) deformation.offsets->setValueOff(openvdb::Coord(n.x, n.y, n.z), openvdb::Vec3f(0.0f));
+        undone.insert(undone.end(), fewer.begin(), fewer.end());
+    }
+    std::sort(undone.begin(), undone.end(), less);
+    return undone;
+}
+
+} // namespace vdbsurf

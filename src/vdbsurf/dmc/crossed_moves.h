@@ -1,0 +1,27 @@
+// Moves of both sides that cross: the thin search moves nodes into thin parts of the inside and
+// of the outside independently, and where a thick part's convex and concave features meet within
+// a cell or two (the rim of a hole through a box, where the hole's concave edge reaches the top
+// face), a node moved in can bridge over a passage that nodes moved out opened: a handle the
+// shape does not have. This module owns undoing one side of such a group of moves.
+#pragma once
+#include "vdbsurf/core/vec3.h"
+#include "vdbsurf/field/field.h"
+
+#include <vector>
+
+namespace vdbsurf {
+
+struct LatticeDeformation;
+struct LatticeFrame;
+
+// Groups the nodes moved across (deformation.offsets; joined across any corner) and, in each
+// group that holds moves to both sides, where the moves of either side alone leave the inside's
+// Euler characteristic as it was at rest (insideEulerAround) and together change it, puts the
+// moves of the side with fewer back at rest. A thin part of either side changes the lattice's
+// topology on its own (a plate's holes filled, a crack's halves parted): that is what the thin
+// search is for, and it stays. `keep`: nodes never put back (sorted). Returns the nodes put back,
+// sorted.
+std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& frame, double iso, LatticeDeformation& deformation,
+                                    const std::vector<Vec3i>& keep);
+
+} // namespace vdbsurf
