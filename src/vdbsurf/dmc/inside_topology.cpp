@@ -120,32 +120,57 @@ int findRoot(std::vector<int>& parent, int i) {
     return i;
 }
 
-// The pieces and the Euler characteristic of a patch of polygons (loops of vertex ids, 0 or more).
-PatchTopology countPatch(const std::vector<std::vector<int>>& polygons) {
-    int ids = 0;
-    for (const std::vector<int>& p : polygons)
-        for (int v : p) ids = std::max(ids, v + 1);
-    std::vector<int> parent(std::size_t(ids), -1);
-    std::vector<std::pair<int, int>> edges;
-    for (const std::vector<int>& p : polygons)
-        for (std::size_t i = 0; i < p.size(); ++i) {
-            const int a = p[i], b = p[(i + 1) % p.size()];
-            edges.emplace_back(std::min(a, b), std::max(a, b));
-            for (int v : {a, b})
-                if (parent[std::size_t(v)] < 0) parent[std::size_t(v)] = v;
-            const int ra = findRoot(parent, a), rb = findRoot(parent, b);
-            parent[std::size_t(std::max(ra, rb))] = std::min(ra, rb);
+// Polygons as loops of vertex ids (0 or more) in one flat list, without allocating: the weld
+// check runs for most nodes placed on features, each block of sides a new one.
+struct Loops27 {
+    static constexpr int kMaxIds = 256, kMaxLoops = 96;
+    int ids[kMaxIds];
+    int start[kMaxLoops + 1] = {0};
+    int count = 0;
+    void add(const int* first, int size) {
+        for (int i = 0; i < size; ++i) ids[start[count] + i] = first[i];
+        start[count + 1] = start[count] + size;
+        ++count;
+    }
+    int size(int l) const { return start[l + 1] - start[l]; }
+    const int* loop(int l) const { return ids + start[l]; }
+};
+
+// Vertex ids stay below this: crossings, then one per fan.
+constexpr int kMaxVertexIds = kCrossings + Loops27::kMaxLoops;
+
+// The pieces and the Euler characteristic of a patch of polygons.
+PatchTopology countPatch(const Loops27& polygons) {
+    int parent[kMaxVertexIds];
+    std::fill(parent, parent + kMaxVertexIds, -1);
+    auto root = [&](int v) {
+        while (parent[v] != v) v = parent[v] = parent[parent[v]];
+        return v;
+    };
+    std::uint32_t edges[Loops27::kMaxIds];
+    int edgeCount = 0;
+    for (int l = 0; l < polygons.count; ++l) {
+        const int* p = polygons.loop(l);
+        const int n = polygons.size(l);
+        for (int i = 0; i < n; ++i) {
+            const int a = p[i], b = p[(i + 1) % n];
+            edges[edgeCount++] = std::uint32_t(std::min(a, b)) << 16 | std::uint32_t(std::max(a, b));
+            if (parent[a] < 0) parent[a] = a;
+            if (parent[b] < 0) parent[b] = b;
+            const int ra = root(a), rb = root(b);
+            parent[std::max(ra, rb)] = std::min(ra, rb);
         }
-    std::sort(edges.begin(), edges.end());
-    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    }
+    std::sort(edges, edges + edgeCount);
+    const int distinctEdges = int(std::unique(edges, edges + edgeCount) - edges);
     PatchTopology out;
     int vertices = 0;
-    for (std::size_t v = 0; v < parent.size(); ++v) {
+    for (int v = 0; v < kMaxVertexIds; ++v) {
         if (parent[v] < 0) continue;
         ++vertices;
-        out.pieces += findRoot(parent, int(v)) == int(v);
+        out.pieces += root(v) == v;
     }
-    out.euler = vertices - int(edges.size()) + int(polygons.size());
+    out.euler = vertices - distinctEdges + polygons.count;
     return out;
 }
 
@@ -155,8 +180,7 @@ CentreWeld weldAtCentre(const bool inside[27]) {
     // The polygons with a crossing at the centre as marching cubes makes them, and once welded:
     // each a run of crossings from the centre round to it again (a polygon where the centre comes
     // back gives one run for each time; a run of fewer than three vertices has collapsed).
-    std::vector<std::vector<int>> polygons, runs;
-    std::vector<int> loop;
+    Loops27 polygons, runs;
     for (int cell = 0; cell < 8; ++cell) {
         const int cx = cell & 1, cy = (cell >> 1) & 1, cz = (cell >> 2) & 1; // min corner in the block
         unsigned config = 0;
@@ -165,53 +189,58 @@ CentreWeld weldAtCentre(const bool inside[27]) {
         const CubeCase& cc = cubeCase(config);
         int first = 0;
         for (int l = 0; l < cc.loopCount; first += cc.loopSize[l], ++l) {
-            std::vector<int> polygon;
-            loop.clear();
+            int polygon[12], loop[13], size = 0;
             for (int i = 0; i < cc.loopSize[l]; ++i) {
                 const int e = cc.edges[first + i];
                 const Vec3i from = Vec3i(cx, cy, cz) + cubeEdgeOrigin(e), to = from + cubeAxisStep(cubeEdgeAxis(e));
-                polygon.push_back(crossingId(from.x, from.y, from.z, cubeEdgeAxis(e)));
-                const bool atCentre = blockIndex(from) == 13 || blockIndex(to) == 13;
-                const int id = atCentre ? kCentre : polygon.back();
-                if (loop.empty() || loop.back() != id) loop.push_back(id);
+                polygon[i] = crossingId(from.x, from.y, from.z, cubeEdgeAxis(e));
+                const int id = blockIndex(from) == 13 || blockIndex(to) == 13 ? kCentre : polygon[i];
+                if (size == 0 || loop[size - 1] != id) loop[size++] = id;
             }
-            while (loop.size() > 1 && loop.front() == loop.back()) loop.pop_back();
-            const auto at = std::find(loop.begin(), loop.end(), kCentre);
-            if (at == loop.end()) continue;
-            polygons.push_back(std::move(polygon));
-            std::rotate(loop.begin(), at, loop.end());
-            loop.push_back(kCentre);
-            for (std::size_t i = 0; i + 1 < loop.size();) {
-                std::size_t j = i + 1;
+            while (size > 1 && loop[0] == loop[size - 1]) --size;
+            const int at = int(std::find(loop, loop + size, kCentre) - loop);
+            if (at == size) continue;
+            polygons.add(polygon, cc.loopSize[l]);
+            std::rotate(loop, loop + at, loop + size);
+            loop[size++] = kCentre;
+            for (int i = 0; i + 1 < size;) {
+                int j = i + 1;
                 while (loop[j] != kCentre) ++j;
-                if (j - i >= 3) runs.emplace_back(loop.begin() + std::ptrdiff_t(i), loop.begin() + std::ptrdiff_t(j));
+                if (j - i >= 3) runs.add(loop + i, j - i);
                 i = j;
             }
         }
     }
     // A pair of runs that are each other reversed folds onto itself (a pillow of no volume): the
     // weld drops both.
-    std::vector<std::uint8_t> dropped(runs.size(), 0);
-    for (std::size_t a = 0; a < runs.size(); ++a)
-        for (std::size_t b = a + 1; b < runs.size() && !dropped[a]; ++b) {
-            if (dropped[b] || runs[a].size() != runs[b].size()) continue;
-            if (std::equal(runs[a].begin() + 1, runs[a].end(), runs[b].rbegin(), runs[b].rend() - 1)) dropped[a] = dropped[b] = 1;
+    bool dropped[Loops27::kMaxLoops] = {};
+    for (int a = 0; a < runs.count; ++a)
+        for (int b = a + 1; b < runs.count && !dropped[a]; ++b) {
+            if (dropped[b] || runs.size(a) != runs.size(b)) continue;
+            const int n = runs.size(a);
+            bool reversed = true;
+            for (int k = 1; k < n && reversed; ++k) reversed = runs.loop(a)[k] == runs.loop(b)[n - k];
+            if (reversed) dropped[a] = dropped[b] = true;
         }
     // Runs sharing an edge at the centre (the crossing next to it on either side) are one fan,
     // and each fan gets a vertex of its own, as the weld splits them.
-    std::vector<int> parent(runs.size());
-    for (std::size_t i = 0; i < runs.size(); ++i) parent[i] = int(i);
-    for (std::size_t a = 0; a < runs.size(); ++a)
-        for (std::size_t b = a + 1; b < runs.size(); ++b) {
+    int parent[Loops27::kMaxLoops];
+    for (int i = 0; i < runs.count; ++i) parent[i] = i;
+    auto root = [&](int i) {
+        while (parent[i] != i) i = parent[i] = parent[parent[i]];
+        return i;
+    };
+    for (int a = 0; a < runs.count; ++a)
+        for (int b = a + 1; b < runs.count; ++b) {
             if (dropped[a] || dropped[b]) continue;
-            const int a0 = runs[a][1], a1 = runs[a].back(), b0 = runs[b][1], b1 = runs[b].back();
-            if (a0 == b0 || a0 == b1 || a1 == b0 || a1 == b1) parent[std::size_t(findRoot(parent, int(a)))] = findRoot(parent, int(b));
+            const int a0 = runs.loop(a)[1], a1 = runs.loop(a)[runs.size(a) - 1], b0 = runs.loop(b)[1], b1 = runs.loop(b)[runs.size(b) - 1];
+            if (a0 == b0 || a0 == b1 || a1 == b0 || a1 == b1) parent[root(a)] = root(b);
         }
-    std::vector<std::vector<int>> welded;
-    for (std::size_t i = 0; i < runs.size(); ++i) {
+    Loops27 welded;
+    for (int i = 0; i < runs.count; ++i) {
         if (dropped[i]) continue;
-        welded.push_back(runs[i]);
-        welded.back()[0] = kCrossings + findRoot(parent, int(i));
+        welded.add(runs.loop(i), runs.size(i));
+        welded.ids[welded.start[welded.count - 1]] = kCrossings + root(i);
     }
     return {countPatch(polygons), countPatch(welded)};
 }

@@ -26,6 +26,7 @@
 #include <map>
 #include <optional>
 #include <tuple>
+#include <unordered_map>
 
 namespace vdbsurf {
 
@@ -905,8 +906,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // a corner its side's nodes often meet across a diagonal (a tetrahedron's tips, a pyramid's
     // base corners, a notch's corner were lost counted strictly), but a node moved into a rod and
     // placed at its root, with the rod's nodes above it and the ball's below, cut the rod off.
-    auto splitsLink = [&](const Proposal& p, bool flip, std::uint32_t atRest) {
-        const std::uint32_t now = sidesNow(p.node, atRest);
+    auto splitsLink = [&](const Proposal& p, bool flip, std::uint32_t now) {
         if (flip) return groupsAround(now, true, 6) > 1 || groupsAround(now, false, 18) > 1;
         return groupsAround(now, p.inside, p.inside ? 18 : 26) > 1;
     };
@@ -916,13 +916,18 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     // tube met the node from both ends: two fans, split apart; 1 of 70 random wedges). So a node
     // that keeps its side must also leave the topology of the surface round it as it was once
     // its crossings are welded into it (weldAtCentre; a flipped node is joined by bridging after).
-    auto pinches = [&](const Proposal& p, std::uint32_t atRest) {
-        const std::uint32_t now = sidesNow(p.node, atRest);
-        bool sides[27];
-        for (int k = 0; k < 27; ++k) sides[k] = (now >> k) & 1u;
-        sides[13] = p.inside;
-        const CentreWeld weld = weldAtCentre(sides);
-        return !weld.keepsTopology();
+    // (A function of the 27 sides alone, asked for most nodes placed: a surface repeats few of
+    // them, and the count allocates, so each is counted once. A node with one crossing has
+    // nothing to weld.)
+    std::unordered_map<std::uint32_t, bool> weldCuts;
+    auto pinches = [&](const Proposal& p, int otherSide, std::uint32_t now) {
+        if (otherSide < 2) return false;
+        const std::uint32_t sides = p.inside ? now | (1u << 13) : now & ~(1u << 13);
+        const auto known = weldCuts.find(sides);
+        if (known != weldCuts.end()) return known->second;
+        bool block[27];
+        for (int k = 0; k < 27; ++k) block[k] = (sides >> k) & 1u;
+        return weldCuts[sides] = !weldAtCentre(block).keepsTopology();
     };
 
     // The nodes as the thin search left them, for flips undone below.
@@ -950,8 +955,12 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // whose neighbours on the rim went into the crack, flipped onto the rim's edge, made a
         // tunnel under it in 11 of 120 random cracks 0.2-0.5 H wide, 3 of 60 at 0.5-1 H).
         const bool flip = otherSide == 0;
-        if (otherSide == 6 || sharesCrossing || !keepsFaces[i] || (flip && takenAcross) || splitsLink(p, flip, insideAround[i]) ||
-            (!flip && pinches(p, insideAround[i]))) {
+        if (otherSide == 6 || sharesCrossing || !keepsFaces[i] || (flip && takenAcross)) {
+            ++out.rejected;
+            continue;
+        }
+        const std::uint32_t now = sidesNow(p.node, insideAround[i]);
+        if (splitsLink(p, flip, now) || (!flip && pinches(p, otherSide, now))) {
             ++out.rejected;
             continue;
         }
@@ -1157,7 +1166,8 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
     for (std::size_t i = 0; i < along.size(); ++i) {
         bool sharesCrossing = false, takenAcross = false;
         const int otherSide = neighbourSides(along[i], alongAround[i], sharesCrossing, takenAcross);
-        if (otherSide == 0 || otherSide == 6 || sharesCrossing || pinches(along[i], alongAround[i])) continue;
+        if (otherSide == 0 || otherSide == 6 || sharesCrossing) continue;
+        if (otherSide >= 2 && pinches(along[i], otherSide, sidesNow(along[i].node, alongAround[i]))) continue;
         place(along[i], along[i].inside);
         ++out.nodesAlongEdges;
     }
