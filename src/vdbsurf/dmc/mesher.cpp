@@ -192,7 +192,9 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         thinSearch(field, lattice, to, deformation, &ts, &crowded, &loneJoins);
         auto order = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
         std::sort(loneJoins.begin(), loneJoins.end(), order);
+        const auto crossedStart = std::chrono::steady_clock::now();
         report.thinCrossedUndone = undoCrossedMoves(field, lattice.frame, report.iso, deformation, loneJoins).size();
+        const double crossedSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - crossedStart).count();
         activateCellsAroundMovedNodes(lattice, deformation);
         // (Before the sharp pass moves nodes of its own.) A lone node's join is a neck of a few
         // polygons, nothing to simplify (on the armadillo, the simplification's passes over the
@@ -207,7 +209,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         report.thinSamples = ts.samples;
         report.thinNodesMoved = ts.nodesMoved;
         report.thinEdgesSplit = ts.edgesSplit;
-        report.secondsThin = ts.seconds;
+        report.secondsThin = ts.seconds + crossedSeconds;
         // Without the sharp pass nothing moves after it: centred before the surface is built.
         if (!request.sharp) centre();
     }
