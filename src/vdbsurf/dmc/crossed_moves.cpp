@@ -3,9 +3,9 @@
 #include "vdbsurf/core/lattice_frame.h"
 #include "vdbsurf/dmc/inside_topology.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
+#include "vdbsurf/dmc/rest_sides.h"
 
 #include <algorithm>
-#include <map>
 #include <tuple>
 
 namespace vdbsurf {
@@ -18,14 +18,8 @@ std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& fram
         const openvdb::Coord c = it.getCoord();
         if (!deformation.onSurface->isValueOn(c)) moved.emplace_back(c.x(), c.y(), c.z());
     }
-    const Inside side = field.inside();
-    std::map<std::tuple<int, int, int>, bool> restInside;
-    auto atRest = [&](const Vec3i& n) {
-        const auto key = std::make_tuple(n.x, n.y, n.z);
-        const auto it = restInside.find(key);
-        if (it != restInside.end()) return it->second;
-        return restInside[key] = isInside(field.value(frame.nodeWorld(n)), iso, side);
-    };
+    RestSides rest(field, frame, iso);
+    auto atRest = [&](const Vec3i& n) { return rest.inside(n); };
     std::vector<Vec3i> undone;
     for (const std::vector<Vec3i>& group : groupsAcrossCorners(moved)) {
         // (Every node of the group is moved: its side now is the other one.)
@@ -41,10 +35,10 @@ std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& fram
                 return inGroup(n) && !undo ? !atRest(n) : atRest(n);
             });
         };
-        const int rest = insideEulerAround(group, atRest);
+        const int atRestEuler = insideEulerAround(group, atRest);
         // Only where each side's moves alone keep the topology and together change it: a thin part
         // of either side changes the lattice's topology on its own, and that is kept.
-        if (eulerWithout(nullptr) == rest || eulerWithout(&wentIn) != rest || eulerWithout(&wentOut) != rest) continue;
+        if (eulerWithout(nullptr) == atRestEuler || eulerWithout(&wentIn) != atRestEuler || eulerWithout(&wentOut) != atRestEuler) continue;
         const std::vector<Vec3i>& fewer = wentIn.size() <= wentOut.size() ? wentIn : wentOut;
         for (const Vec3i& n : fewer) deformation.offsets->setValueOff(openvdb::Coord(n.x, n.y, n.z), openvdb::Vec3f(0.0f));
         undone.insert(undone.end(), fewer.begin(), fewer.end());

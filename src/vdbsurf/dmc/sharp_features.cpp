@@ -9,6 +9,7 @@
 #include "vdbsurf/dmc/inside_topology.h"
 #include "vdbsurf/dmc/lattice_deformation.h"
 #include "vdbsurf/dmc/lattice_surface.h"
+#include "vdbsurf/dmc/rest_sides.h"
 #include "vdbsurf/dmc/sampled_planes.h"
 #include "vdbsurf/dmc/thin_search.h"
 #include "vdbsurf/lattice/lattice.h"
@@ -23,7 +24,6 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <map>
 #include <optional>
 #include <tuple>
 #include <unordered_map>
@@ -1022,15 +1022,9 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         changed.insert(changed.end(), flipped.begin(), flipped.end());
         for (const std::vector<Vec3i>& group : groupsAcrossCorners(changed)) {
             NodeStates now(deformation), was(before);
-            std::map<std::tuple<int, int, int>, bool> restInside;
-            auto atRest = [&](const Vec3i& n) {
-                const auto key = std::make_tuple(n.x, n.y, n.z);
-                const auto it = restInside.find(key);
-                if (it != restInside.end()) return it->second;
-                return restInside[key] = isInside(field.value(frame.nodeWorld(n)), iso, side);
-            };
-            auto insideNow = [&](const Vec3i& n) { return now.inside(Coord(n.x, n.y, n.z), atRest(n)); };
-            auto insideBefore = [&](const Vec3i& n) { return was.inside(Coord(n.x, n.y, n.z), atRest(n)); };
+            RestSides rest(field, frame, iso);
+            auto insideNow = [&](const Vec3i& n) { return now.inside(Coord(n.x, n.y, n.z), rest.inside(n)); };
+            auto insideBefore = [&](const Vec3i& n) { return was.inside(Coord(n.x, n.y, n.z), rest.inside(n)); };
             const int prior = insideEulerAround(group, insideBefore);
             if (insideEulerAround(group, insideNow) == prior) continue;
             std::vector<Vec3i> wentIn, wentOut;
