@@ -174,3 +174,15 @@ TEST_CASE("a piece's tip that the lattice cannot join to the piece is not left a
                                    {0.17337699888430613, 0.49111006338588525, -0.45640317623106208}};
     CHECK(inTheirPieces(fracturedBall(seeds, 0.053424406021060813), 8));
 }
+
+TEST_CASE("moves into a gap and into a piece's tip beside it, which only together join the tip, are kept") {
+    // Found at random (gap 0.23 H): the crossed-moves check (crossed_moves.h) took the moves into
+    // the tip back as a handle they made with the gap's, and the tip came off as a sixth piece.
+    // Together they joined it: the pieces around them changed, and such moves now stay.
+    const std::vector<Vec3d> seeds{{-0.25022676812224665, 0.38417910323319115, -0.06362255263341343},
+                                   {0.318283015088181, -0.36264647248502513, -0.09947824732911947},
+                                   {-0.15463471044730792, -0.21554607173329043, -0.06628826695952517},
+                                   {0.23383561363381056, 0.34971792225332343, -0.13308656584778256},
+                                   {0.3627894592347932, 0.407407750567123, 0.3038526915922194}};
+    CHECK(inTheirPieces(fracturedBall(seeds, 0.023042239347339832), 5));
+}

@@ -116,6 +116,20 @@ TEST_CASE("the inside's Euler characteristic around changed nodes changes as the
     CHECK(insideEulerAround(gap, ring(true)) - insideEulerAround(gap, ring(false)) == 1);
 }
 
+TEST_CASE("pieces in a box are counted as marching cubes joins each side") {
+    // A row with one node outside: two inside pieces, one outside.
+    auto row = [](const Vec3i& n) { return n.x != 2; };
+    CHECK(piecesInBox(Vec3i(0, 0, 0), Vec3i(4, 0, 0), true, row) == 2);
+    CHECK(piecesInBox(Vec3i(0, 0, 0), Vec3i(4, 0, 0), false, row) == 1);
+    // Two inside nodes across a face's diagonal: apart; the two outside ones there: joined.
+    auto diagonal = [](const Vec3i& n) { return n.x == n.y; };
+    CHECK(piecesInBox(Vec3i(0, 0, 0), Vec3i(1, 1, 0), true, diagonal) == 2);
+    CHECK(piecesInBox(Vec3i(0, 0, 0), Vec3i(1, 1, 0), false, diagonal) == 1);
+    // Across a cell's diagonal the outside is apart too.
+    auto corners = [](const Vec3i& n) { return !(n == Vec3i(0, 0, 0) || n == Vec3i(1, 1, 1)); };
+    CHECK(piecesInBox(Vec3i(0, 0, 0), Vec3i(1, 1, 1), false, corners) == 2);
+}
+
 namespace {
 
 struct Wedge {

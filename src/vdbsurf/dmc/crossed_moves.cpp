@@ -39,6 +39,20 @@ std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& fram
         // Only where each side's moves alone keep the topology and together change it: a thin part
         // of either side changes the lattice's topology on its own, and that is kept.
         if (eulerWithout(nullptr) == atRestEuler || eulerWithout(&wentIn) != atRestEuler || eulerWithout(&wentOut) != atRestEuler) continue;
+        // And only a handle (or its loss): where the pieces of either side around the group
+        // change, the moves together join or part what one side's thin part alone could not
+        // (between a fracture's pieces, a wedge tip of one joined to it across a gap), and stay.
+        Vec3i lo = group.front(), hi = group.front();
+        for (const Vec3i& n : group) {
+            lo = Vec3i(std::min(lo.x, n.x), std::min(lo.y, n.y), std::min(lo.z, n.z));
+            hi = Vec3i(std::max(hi.x, n.x), std::max(hi.y, n.y), std::max(hi.z, n.z));
+        }
+        lo = lo - Vec3i(2, 2, 2);
+        hi = hi + Vec3i(2, 2, 2);
+        auto now = [&](const Vec3i& n) { return inGroup(n) != atRest(n); };
+        if (piecesInBox(lo, hi, true, now) != piecesInBox(lo, hi, true, atRest) ||
+            piecesInBox(lo, hi, false, now) != piecesInBox(lo, hi, false, atRest))
+            continue;
         const std::vector<Vec3i>& fewer = wentIn.size() <= wentOut.size() ? wentIn : wentOut;
         for (const Vec3i& n : fewer) deformation.offsets->setValueOff(openvdb::Coord(n.x, n.y, n.z), openvdb::Vec3f(0.0f));
         undone.insert(undone.end(), fewer.begin(), fewer.end());

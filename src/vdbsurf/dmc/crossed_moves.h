@@ -16,7 +16,8 @@ struct LatticeFrame;
 
 // Groups the nodes moved across (deformation.offsets; joined across any corner) and, in each
 // group that holds moves to both sides, where the moves of either side alone leave the inside's
-// Euler characteristic as it was at rest (insideEulerAround) and together change it, puts the
+// Euler characteristic as it was at rest (insideEulerAround) and together change it without
+// changing how many pieces either side makes around the group (a handle made or lost), puts the
 // moves of the side with fewer back at rest. A thin part of either side changes the lattice's
 // topology on its own (a plate's holes filled, a crack's halves parted): that is what the thin
 // search is for, and it stays. `keep`: nodes never put back (sorted). Returns the nodes put back,

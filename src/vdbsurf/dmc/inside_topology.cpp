@@ -284,6 +284,46 @@ int insideEulerAround(const std::vector<Vec3i>& nodes, const std::function<bool(
     return euler;
 }
 
+int piecesInBox(const Vec3i& lo, const Vec3i& hi, bool side, const std::function<bool(const Vec3i&)>& inside) {
+    const Vec3i dims = hi - lo + Vec3i(1, 1, 1);
+    if (dims.x <= 0 || dims.y <= 0 || dims.z <= 0) return 0;
+    auto index = [&](const Vec3i& n) { return std::size_t((n.x - lo.x) + dims.x * ((n.y - lo.y) + dims.y * (n.z - lo.z))); };
+    std::vector<std::int8_t> state(std::size_t(dims.x) * std::size_t(dims.y) * std::size_t(dims.z), -1); // -1: not yet read
+    auto onSide = [&](const Vec3i& n) {
+        std::int8_t& s = state[index(n)];
+        if (s < 0) s = inside(n) == side ? 1 : 0;
+        return s == 1;
+    };
+    std::vector<std::uint8_t> seen(state.size(), 0);
+    std::vector<Vec3i> stack;
+    int pieces = 0;
+    for (int z = lo.z; z <= hi.z; ++z)
+        for (int y = lo.y; y <= hi.y; ++y)
+            for (int x = lo.x; x <= hi.x; ++x) {
+                const Vec3i start(x, y, z);
+                if (seen[index(start)] || !onSide(start)) continue;
+                ++pieces;
+                seen[index(start)] = 1;
+                stack.push_back(start);
+                while (!stack.empty()) {
+                    const Vec3i n = stack.back();
+                    stack.pop_back();
+                    for (int dz = -1; dz <= 1; ++dz)
+                        for (int dy = -1; dy <= 1; ++dy)
+                            for (int dx = -1; dx <= 1; ++dx) {
+                                const int steps = std::abs(dx) + std::abs(dy) + std::abs(dz);
+                                if (steps == 0 || steps > (side ? 1 : 2)) continue;
+                                const Vec3i m = n + Vec3i(dx, dy, dz);
+                                if (m.x < lo.x || m.y < lo.y || m.z < lo.z || m.x > hi.x || m.y > hi.y || m.z > hi.z) continue;
+                                if (seen[index(m)] || !onSide(m)) continue;
+                                seen[index(m)] = 1;
+                                stack.push_back(m);
+                            }
+                }
+            }
+    return pieces;
+}
+
 std::vector<std::vector<Vec3i>> groupsAcrossCorners(std::vector<Vec3i> nodes) {
     auto less = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
     std::sort(nodes.begin(), nodes.end(), less);

@@ -34,6 +34,11 @@ int insideEulerChange(const bool inside[27]);
 // cavities stay as they were (or change in ways that cancel, which a few nodes seldom do).
 int insideEulerAround(const std::vector<Vec3i>& nodes, const std::function<bool(const Vec3i&)>& inside);
 
+// How many pieces the nodes of the box [lo, hi] on `side` (inside: true) make within it, joined
+// as marching cubes joins them: inside nodes along edges, outside nodes across faces' diagonals
+// too.
+int piecesInBox(const Vec3i& lo, const Vec3i& hi, bool side, const std::function<bool(const Vec3i&)>& inside);
+
 // The nodes (repeats allowed) in groups joined across any corner, each sorted (x, then y, then z),
 // groups in the order of their first nodes: groups two steps apart or more share no element of
 // the lattice, so their changes can be counted apart.
