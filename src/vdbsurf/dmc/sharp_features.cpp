@@ -292,7 +292,6 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
 
 bool coordLess(const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); }
 
-
 // The axis neighbours of `nodes` that stand on another side than at rest (moved by the thin search
 // into a thin part, or placed on a feature on the other side), sorted.
 std::vector<Vec3i> crossedNeighbours(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& nodes,
@@ -1014,15 +1013,15 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         // Each flip and its bridge make a tip of one side longer, which changes nothing about the
         // inside's topology. Where flips of both sides meet (a notch under two cells, where the
         // concave corner's node flips out and the rim's corners' flip in), their bridges can pass
-        // round each other: a handle (7 of 120 random notched boxes). In each group of changed
+        // round each other: a handle (9 of 200 random notched boxes). In each group of changed
         // nodes (joined across any corner) whose changes alter the inside's Euler characteristic,
         // the nodes that went to one side go back as they were before the flips — the side with
         // fewer, if that mends it, else the other, else all.
         std::vector<Vec3i> changed = out.changedNodes;
         changed.insert(changed.end(), flipped.begin(), flipped.end());
+        RestSides rest(field, frame, iso);
         for (const std::vector<Vec3i>& group : groupsAcrossCorners(changed)) {
             NodeStates now(deformation), was(before);
-            RestSides rest(field, frame, iso);
             auto insideNow = [&](const Vec3i& n) { return now.inside(Coord(n.x, n.y, n.z), rest.inside(n)); };
             auto insideBefore = [&](const Vec3i& n) { return was.inside(Coord(n.x, n.y, n.z), rest.inside(n)); };
             const int prior = insideEulerAround(group, insideBefore);
