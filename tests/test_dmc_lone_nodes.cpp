@@ -66,12 +66,6 @@ TEST_CASE("a lone node's join goes through the face corner that closes no handle
 
 namespace {
 
-// A 3x3x3 block (index x + 3 y + 9 z, offsets -1 .. 1) with these offsets inside.
-std::array<bool, 27> block(std::initializer_list<std::array<int, 3>> inside) {
-    std::array<bool, 27> b{};
-    for (const auto& o : inside) b[std::size_t((o[0] + 1) + 3 * (o[1] + 1) + 9 * (o[2] + 1))] = true;
-    return b;
-}
 constexpr int kLoneAtMinusX = 12; // offset (-1, 0, 0)
 constexpr int kLoneAtMinusY = 10; // offset (0, -1, 0)
 
@@ -79,49 +73,50 @@ constexpr int kLoneAtMinusY = 10; // offset (0, -1, 0)
 
 TEST_CASE("the centre of a block joins a lone node only where it changes nothing else") {
     // Its other inside neighbour joined to a layer below: one piece, joined as a bubble.
-    auto b = block({{-1, 0, 0}, {1, 0, 0}, {0, 0, -1}, {1, 0, -1}, {0, 1, -1}, {1, 1, -1}, {0, -1, -1}, {1, -1, -1}});
+    auto b = test::insideBlock({{-1, 0, 0}, {1, 0, 0}, {0, 0, -1}, {1, 0, -1}, {0, 1, -1}, {1, 1, -1}, {0, -1, -1}, {1, -1, -1}});
     CHECK(joinsBubbleOnly(b.data(), kLoneAtMinusX));
     // Inside neighbours in two pieces of the block: they may meet beyond it (a handle).
-    b = block({{-1, 0, 0}, {0, 1, 0}, {0, -1, 0}});
+    b = test::insideBlock({{-1, 0, 0}, {0, 1, 0}, {0, -1, 0}});
     CHECK_FALSE(joinsBubbleOnly(b.data(), kLoneAtMinusX));
     // Two pieces, though the Euler characteristic alone would pass the join (found by a search
     // over random blocks: 343 of 200,000).
-    b = block({{-1, -1, -1}, {1, -1, -1}, {0, 0, -1}, {0, 1, -1}, {0, -1, 0}, {1, -1, 0}, {-1, 0, 0}, {1, 0, 0}, {1, 1, 0},
+    b = test::insideBlock({{-1, -1, -1}, {1, -1, -1}, {0, 0, -1}, {0, 1, -1}, {0, -1, 0}, {1, -1, 0}, {-1, 0, 0}, {1, 0, 0}, {1, 1, 0},
                {0, -1, 1}, {1, -1, 1}, {0, 0, 1}, {-1, 1, 1}, {0, 1, 1}, {1, 1, 1}});
     CHECK_FALSE(joinsBubbleOnly(b.data(), kLoneAtMinusX));
     // One piece that goes round the edge to (1, 0, 0), outside: the centre would close a loop
     // round it.
-    b = block({{-1, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}, {1, -1, 1}, {1, -1, 0}, {0, -1, 0}});
+    b = test::insideBlock({{-1, 0, 0}, {0, 1, 0}, {1, 1, 0}, {1, 1, 1}, {1, 0, 1}, {1, -1, 1}, {1, -1, 0}, {0, -1, 0}});
     CHECK_FALSE(joinsBubbleOnly(b.data(), kLoneAtMinusX));
     // Six of a cell's corners round two opposite ones outside, (0, 1, 0) and (1, 0, 1), with the
     // centre: marching cubes fills the cell between them (no loop), so the join is clean.
-    b = block({{0, -1, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 1}, {0, 1, 1}, {1, 1, 1}});
+    b = test::insideBlock({{0, -1, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 1}, {0, 1, 1}, {1, 1, 1}});
     CHECK(joinsBubbleOnly(b.data(), kLoneAtMinusY));
     // The node is not inside, or not across a face: nothing to join.
-    b = block({{1, 0, 0}});
+    b = test::insideBlock({{1, 0, 0}});
     CHECK_FALSE(joinsBubbleOnly(b.data(), kLoneAtMinusX));
-    b = block({{-1, -1, 0}, {1, 0, 0}});
+    b = test::insideBlock({{-1, -1, 0}, {1, 0, 0}});
     CHECK_FALSE(joinsBubbleOnly(b.data(), 9 + 0 + 0)); // offset (-1, -1, 0)
 }
 
 TEST_CASE("putting a node inside changes the inside's Euler characteristic as its topology says") {
     // Alone: a new piece, a ball.
-    CHECK(insideEulerChange(block({}).data()) == 1);
-    CHECK(insidePiecesAtCentre(block({}).data()) == 0);
+    CHECK(insideEulerChange(test::insideBlock({}).data()) == 1);
+    CHECK(insidePiecesAtCentre(test::insideBlock({}).data()) == 0);
     // On a layer: the layer grows, nothing else.
-    const auto layer = block({{-1, -1, -1}, {0, -1, -1}, {1, -1, -1}, {-1, 0, -1}, {0, 0, -1}, {1, 0, -1}, {-1, 1, -1}, {0, 1, -1}, {1, 1, -1}});
+    const auto layer = test::insideBlock(
+        {{-1, -1, -1}, {0, -1, -1}, {1, -1, -1}, {-1, 0, -1}, {0, 0, -1}, {1, 0, -1}, {-1, 1, -1}, {0, 1, -1}, {1, 1, -1}});
     CHECK(insideEulerChange(layer.data()) == 0);
     CHECK(insidePiecesAtCentre(layer.data()) == 1);
     // Between two nodes across from each other: two pieces joined.
-    const auto two = block({{-1, 0, 0}, {1, 0, 0}});
+    const auto two = test::insideBlock({{-1, 0, 0}, {1, 0, 0}});
     CHECK(insideEulerChange(two.data()) == -1);
     CHECK(insidePiecesAtCentre(two.data()) == 2);
     // Between two nodes of an arc round an edge the centre lies on: a loop closed, one piece.
-    const auto arc = block({{-1, 0, 0}, {-1, 1, 0}, {-1, 1, 1}, {0, 1, 1}, {1, 1, 1}, {1, 1, 0}, {1, 0, 0}});
+    const auto arc = test::insideBlock({{-1, 0, 0}, {-1, 1, 0}, {-1, 1, 1}, {0, 1, 1}, {1, 1, 1}, {1, 1, 0}, {1, 0, 0}});
     CHECK(insidePiecesAtCentre(arc.data()) == 1);
     CHECK(insideEulerChange(arc.data()) == -1);
     // In the middle of a ring of eight in its plane: the ring's hole filled.
-    const auto ring = block({{-1, -1, 0}, {0, -1, 0}, {1, -1, 0}, {-1, 0, 0}, {1, 0, 0}, {-1, 1, 0}, {0, 1, 0}, {1, 1, 0}});
+    const auto ring = test::insideBlock({{-1, -1, 0}, {0, -1, 0}, {1, -1, 0}, {-1, 0, 0}, {1, 0, 0}, {-1, 1, 0}, {0, 1, 0}, {1, 1, 0}});
     CHECK(insidePiecesAtCentre(ring.data()) == 1);
     CHECK(insideEulerChange(ring.data()) == 1);
     // In a cavity of a solid: the cavity filled.

@@ -28,12 +28,6 @@ using test::num;
 
 namespace {
 
-// A 3x3x3 block (index x + 3 y + 9 z, offsets -1 .. 1) with these offsets inside.
-std::array<bool, 27> block(std::initializer_list<std::array<int, 3>> inside) {
-    std::array<bool, 27> b{};
-    for (const auto& o : inside) b[std::size_t((o[0] + 1) + 3 * (o[1] + 1) + 9 * (o[2] + 1))] = true;
-    return b;
-}
 
 std::array<bool, 27> blockFromBits(std::uint32_t bits) {
     std::array<bool, 27> b{};
@@ -46,24 +40,24 @@ std::array<bool, 27> blockFromBits(std::uint32_t bits) {
 TEST_CASE("welding a node's crossings into it keeps the surface's topology unless it cuts a tube") {
     // A row of inside nodes through the centre (a wire): marching cubes' surface is a tube round
     // it; welded into the centre it becomes two cones that meet there, split apart by the weld.
-    const auto wire = block({{-1, 0, 0}, {0, 0, 0}, {1, 0, 0}});
+    const auto wire = test::insideBlock({{-1, 0, 0}, {0, 0, 0}, {1, 0, 0}});
     CentreWeld w = weldAtCentre(wire.data());
     CHECK(w.before == PatchTopology{1, 0});
     CHECK(w.after == PatchTopology{2, 2});
     CHECK_FALSE(w.keepsTopology());
     // The same with a second row across a face diagonal, which marching cubes never joins to
     // the first (a wedge's thin edge beside its solid: the case found, 1 of 70 random wedges).
-    const auto wedgeEdge = block({{-1, 0, 0}, {0, 0, 0}, {1, 0, 0}, {-1, -1, 1}, {0, -1, 1}, {1, -1, 1}});
+    const auto wedgeEdge = test::insideBlock({{-1, 0, 0}, {0, 0, 0}, {1, 0, 0}, {-1, -1, 1}, {0, -1, 1}, {1, -1, 1}});
     CHECK_FALSE(weldAtCentre(wedgeEdge.data()).keepsTopology());
     // The tip of that row: a cap, welded into a cone. Nothing cut.
-    const auto tip = block({{0, 0, 0}, {1, 0, 0}});
+    const auto tip = test::insideBlock({{0, 0, 0}, {1, 0, 0}});
     w = weldAtCentre(tip.data());
     CHECK(w.before == PatchTopology{1, 1});
     CHECK(w.keepsTopology());
     // On a flat layer: one crossing, its four quads a disc before and after.
-    const auto layer = block({{-1, -1, -1}, {0, -1, -1}, {1, -1, -1}, {-1, 0, -1}, {0, 0, -1}, {1, 0, -1}, {-1, 1, -1}, {0, 1, -1},
-                              {1, 1, -1}, {-1, -1, 0}, {0, -1, 0}, {1, -1, 0}, {-1, 0, 0}, {0, 0, 0}, {1, 0, 0}, {-1, 1, 0},
-                              {0, 1, 0}, {1, 1, 0}});
+    const auto layer = test::insideBlock({{-1, -1, -1}, {0, -1, -1}, {1, -1, -1}, {-1, 0, -1}, {0, 0, -1}, {1, 0, -1},
+                                          {-1, 1, -1}, {0, 1, -1}, {1, 1, -1}, {-1, -1, 0}, {0, -1, 0}, {1, -1, 0},
+                                          {-1, 0, 0}, {0, 0, 0}, {1, 0, 0}, {-1, 1, 0}, {0, 1, 0}, {1, 1, 0}});
     w = weldAtCentre(layer.data());
     CHECK(w.before == PatchTopology{1, 1});
     CHECK(w.keepsTopology());

@@ -45,6 +45,12 @@ GridBasePtr makeTorusLevelSet(double R, double r, const Vec3d& center, double vo
     return g;
 }
 
+std::array<bool, 27> insideBlock(std::initializer_list<std::array<int, 3>> inside) {
+    std::array<bool, 27> b{};
+    for (const auto& o : inside) b[std::size_t((o[0] + 1) + 3 * (o[1] + 1) + 9 * (o[2] + 1))] = true;
+    return b;
+}
+
 GridBasePtr loneNodeBesidePost(float between, bool fog, const std::vector<std::array<int, 3>>& more) {
     initializeOpenVdb();
     auto grid = openvdb::FloatGrid::create(fog ? 0.0f : 1.0f);

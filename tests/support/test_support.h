@@ -7,6 +7,7 @@
 #include <array>
 #include <cstddef>
 #include <functional>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,10 @@ GridBasePtr makeSphereFog(double radius, double ramp, double voxelSize);
 // written as g (negative inside): a level set holds g, a fog 0.5 - g / 4 (inside above its iso
 // 0.5). `more`: further inside voxels (index coordinates).
 GridBasePtr loneNodeBesidePost(float between, bool fog, const std::vector<std::array<int, 3>>& more = {});
+
+// A 3x3x3 block of lattice sides (index x + 3 y + 9 z, offsets -1 .. 1, the centre at 13), as
+// dmc/inside_topology.h reads it, with these offsets inside.
+std::array<bool, 27> insideBlock(std::initializer_list<std::array<int, 3>> inside);
 
 // A fresh empty folder under the system temp folder, removed when the object dies.
 class TempDir {

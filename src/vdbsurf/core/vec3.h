@@ -54,6 +54,11 @@ using Vec3d = Vec3<double>;
 using Vec3f = Vec3<float>;
 using Vec3i = Vec3<int>;
 
+// Lattice coordinates in order: x, then y, then z (sorted lists of nodes, searched by bisection).
+inline bool lessXYZ(const Vec3i& a, const Vec3i& b) {
+    return a.x != b.x ? a.x < b.x : a.y != b.y ? a.y < b.y : a.z < b.z;
+}
+
 // Axis-aligned box in world units, closed on both ends.
 struct Box3 {
     Vec3d min, max;

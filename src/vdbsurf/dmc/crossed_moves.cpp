@@ -6,13 +6,11 @@
 #include "vdbsurf/dmc/rest_sides.h"
 
 #include <algorithm>
-#include <tuple>
 
 namespace vdbsurf {
 
 std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& frame, double iso, LatticeDeformation& deformation,
                                     const std::vector<Vec3i>& keep) {
-    auto less = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
     std::vector<Vec3i> moved;
     for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
         const openvdb::Coord c = it.getCoord();
@@ -25,13 +23,13 @@ std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& fram
         // (Every node of the group is moved: its side now is the other one.)
         std::vector<Vec3i> wentIn, wentOut;
         for (const Vec3i& n : group)
-            if (!std::binary_search(keep.begin(), keep.end(), n, less)) (atRest(n) ? wentOut : wentIn).push_back(n);
+            if (!std::binary_search(keep.begin(), keep.end(), n, lessXYZ)) (atRest(n) ? wentOut : wentIn).push_back(n);
         if (wentIn.empty() || wentOut.empty()) continue;
-        auto inGroup = [&](const Vec3i& n) { return std::binary_search(group.begin(), group.end(), n, less); };
+        auto inGroup = [&](const Vec3i& n) { return std::binary_search(group.begin(), group.end(), n, lessXYZ); };
         // The group's count with the moves of `part` undone (none: all moves as made).
         auto eulerWithout = [&](const std::vector<Vec3i>* part) {
             return insideEulerAround(group, [&](const Vec3i& n) {
-                const bool undo = part && std::binary_search(part->begin(), part->end(), n, less);
+                const bool undo = part && std::binary_search(part->begin(), part->end(), n, lessXYZ);
                 return inGroup(n) && !undo ? !atRest(n) : atRest(n);
             });
         };
@@ -57,7 +55,7 @@ std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& fram
         for (const Vec3i& n : fewer) deformation.offsets->setValueOff(openvdb::Coord(n.x, n.y, n.z), openvdb::Vec3f(0.0f));
         undone.insert(undone.end(), fewer.begin(), fewer.end());
     }
-    std::sort(undone.begin(), undone.end(), less);
+    std::sort(undone.begin(), undone.end(), lessXYZ);
     return undone;
 }
 

@@ -6,7 +6,6 @@
 #include <array>
 #include <cstdint>
 #include <cstdlib>
-#include <tuple>
 #include <vector>
 
 namespace vdbsurf {
@@ -114,9 +113,9 @@ constexpr int kCentre = -1;
 
 Vec3i cubeAxisStep(int axis) { return {axis == 0, axis == 1, axis == 2}; }
 
-// The root of item i's set (a union-find over a handful of items).
-int findRoot(std::vector<int>& parent, int i) {
-    while (parent[std::size_t(i)] != i) i = parent[std::size_t(i)] = parent[std::size_t(parent[std::size_t(i)])];
+// The root of item i's set (a union-find over a handful of items, halving paths).
+int findRoot(int* parent, int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
 }
 
@@ -143,10 +142,7 @@ constexpr int kMaxVertexIds = kCrossings + Loops27::kMaxLoops;
 PatchTopology countPatch(const Loops27& polygons) {
     int parent[kMaxVertexIds];
     std::fill(parent, parent + kMaxVertexIds, -1);
-    auto root = [&](int v) {
-        while (parent[v] != v) v = parent[v] = parent[parent[v]];
-        return v;
-    };
+    auto root = [&](int v) { return findRoot(parent, v); };
     std::uint32_t edges[Loops27::kMaxIds];
     int edgeCount = 0;
     for (int l = 0; l < polygons.count; ++l) {
@@ -226,10 +222,7 @@ CentreWeld weldAtCentre(const bool inside[27]) {
     // and each fan gets a vertex of its own, as the weld splits them.
     int parent[Loops27::kMaxLoops];
     for (int i = 0; i < runs.count; ++i) parent[i] = i;
-    auto root = [&](int i) {
-        while (parent[i] != i) i = parent[i] = parent[parent[i]];
-        return i;
-    };
+    auto root = [&](int i) { return findRoot(parent, i); };
     for (int a = 0; a < runs.count; ++a)
         for (int b = a + 1; b < runs.count; ++b) {
             if (dropped[a] || dropped[b]) continue;
@@ -325,8 +318,7 @@ int piecesInBox(const Vec3i& lo, const Vec3i& hi, bool side, const std::function
 }
 
 std::vector<std::vector<Vec3i>> groupsAcrossCorners(std::vector<Vec3i> nodes) {
-    auto less = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
-    std::sort(nodes.begin(), nodes.end(), less);
+    std::sort(nodes.begin(), nodes.end(), lessXYZ);
     nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
     std::vector<int> parent(nodes.size());
     for (std::size_t i = 0; i < nodes.size(); ++i) parent[i] = int(i);
@@ -335,13 +327,14 @@ std::vector<std::vector<Vec3i>> groupsAcrossCorners(std::vector<Vec3i> nodes) {
             for (int y = -1; y <= 1; ++y)
                 for (int x = -1; x <= 1; ++x) {
                     const Vec3i n = nodes[i] + Vec3i(x, y, z);
-                    const auto it = std::lower_bound(nodes.begin(), nodes.end(), n, less);
-                    if (it != nodes.end() && *it == n) parent[std::size_t(findRoot(parent, int(it - nodes.begin())))] = findRoot(parent, int(i));
+                    const auto it = std::lower_bound(nodes.begin(), nodes.end(), n, lessXYZ);
+                    if (it == nodes.end() || !(*it == n)) continue;
+                    parent[std::size_t(findRoot(parent.data(), int(it - nodes.begin())))] = findRoot(parent.data(), int(i));
                 }
     std::vector<std::vector<Vec3i>> groups;
     std::vector<int> groupOf(nodes.size(), -1);
     for (std::size_t i = 0; i < nodes.size(); ++i) {
-        int& g = groupOf[std::size_t(findRoot(parent, int(i)))];
+        int& g = groupOf[std::size_t(findRoot(parent.data(), int(i)))];
         if (g < 0) {
             g = int(groups.size());
             groups.emplace_back();

@@ -24,7 +24,6 @@
 #include <functional>
 #include <memory>
 #include <numeric>
-#include <tuple>
 
 namespace vdbsurf {
 
@@ -190,8 +189,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         ThinSearchStats ts;
         std::vector<Vec3i> loneJoins;
         thinSearch(field, lattice, to, deformation, &ts, &crowded, &loneJoins);
-        auto order = [](const Vec3i& a, const Vec3i& b) { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
-        std::sort(loneJoins.begin(), loneJoins.end(), order);
+        std::sort(loneJoins.begin(), loneJoins.end(), lessXYZ);
         const auto crossedStart = std::chrono::steady_clock::now();
         report.thinCrossedUndone = undoCrossedMoves(field, lattice.frame, report.iso, deformation, loneJoins).size();
         const double crossedSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - crossedStart).count();
@@ -201,7 +199,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         // whole mesh took 8 ms for its one join).
         for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
             const Vec3i n(it.getCoord().x(), it.getCoord().y(), it.getCoord().z());
-            if (!std::binary_search(loneJoins.begin(), loneJoins.end(), n, order)) thinNodes.push_back(n);
+            if (!std::binary_search(loneJoins.begin(), loneJoins.end(), n, lessXYZ)) thinNodes.push_back(n);
         }
         report.thinLoneJoined = ts.loneJoined;
         report.hiddenCells = ts.hiddenCells;

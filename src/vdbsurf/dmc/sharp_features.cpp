@@ -290,8 +290,6 @@ std::vector<Proposal> confirmedByNeighbours(std::size_t count, const ProposalAt&
     return kept;
 }
 
-bool coordLess(const Vec3i& x, const Vec3i& y) { return std::tie(x.x, x.y, x.z) < std::tie(y.x, y.y, y.z); }
-
 // The axis neighbours of `nodes` that stand on another side than at rest (moved by the thin search
 // into a thin part, or placed on a feature on the other side), sorted.
 std::vector<Vec3i> crossedNeighbours(const Field& field, const LatticeFrame& frame, double iso, const std::vector<Vec3i>& nodes,
@@ -978,7 +976,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         out.changedNodes = flipped;
         out.bridged = bridgeThinParts(field, lattice, to, deformation, flipped, nullptr, &out.changedNodes);
         std::vector<Vec3i> bridged = out.changedNodes;
-        std::sort(bridged.begin(), bridged.end(), coordLess);
+        std::sort(bridged.begin(), bridged.end(), lessXYZ);
         // A flipped node is a join too: a tip of the other side that bridging could not join to it
         // is a bubble (at a crack's rim: 4 or 8 triangles beside the crack). So is a node next to
         // a flipped or bridged one that had been taken across to its side (by the thin search, or
@@ -999,7 +997,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 for (const auto& m : movedBeforeFlip)
                     if (m.first == Coord(r.x, r.y, r.z)) backToThinSearch.push_back(m);
                 flipped.erase(f);
-            } else if (std::binary_search(bridged.begin(), bridged.end(), r, coordLess)) {
+            } else if (std::binary_search(bridged.begin(), bridged.end(), r, lessXYZ)) {
                 --out.bridged;
             } else {
                 ++out.unhung;
@@ -1034,7 +1032,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
             for (const std::vector<Vec3i>* part : {&wentIn, &wentOut}) {
                 if (part->empty() || part->size() == group.size()) continue;
                 auto mended = [&](const Vec3i& n) {
-                    return std::binary_search(part->begin(), part->end(), n, coordLess) ? insideBefore(n) : insideNow(n);
+                    return std::binary_search(part->begin(), part->end(), n, lessXYZ) ? insideBefore(n) : insideNow(n);
                 };
                 if (insideEulerAround(group, mended) == prior) {
                     undo = *part;
@@ -1048,7 +1046,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
                 if (placed != placedFirst.end() && onSurface.isValueOn(c)) (placed->kind == 0 ? out.nodesOnCorners : out.nodesOnEdges) -= 1;
                 const auto f = std::find(flipped.begin(), flipped.end(), n);
                 if (f != flipped.end()) flipped.erase(f);
-                else if (std::binary_search(bridged.begin(), bridged.end(), n, coordLess)) --out.bridged;
+                else if (std::binary_search(bridged.begin(), bridged.end(), n, lessXYZ)) --out.bridged;
                 openvdb::Vec3f offset;
                 if (was.offsets.probeValue(c, offset)) offsets.setValue(c, offset);
                 else offsets.setValueOff(c, openvdb::Vec3f(0.0f));
@@ -1216,7 +1214,7 @@ void placeSharpFeatures(const Field& field, const Lattice& lattice, const Lattic
         out.unhung += closedOff.size();
         out.changedNodes.insert(out.changedNodes.end(), closedOff.begin(), closedOff.end());
     }
-    std::sort(out.changedNodes.begin(), out.changedNodes.end(), coordLess);
+    std::sort(out.changedNodes.begin(), out.changedNodes.end(), lessXYZ);
     out.changedNodes.erase(std::unique(out.changedNodes.begin(), out.changedNodes.end()), out.changedNodes.end());
     out.flipped = flipped.size();
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
