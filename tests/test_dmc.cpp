@@ -1207,26 +1207,37 @@ TEST_CASE("notched cubes under two cells deep come out in one piece without a ha
     CHECK(cornersKept >= 19);
 }
 
+namespace {
+
+// The three coordinates of a box rotated by the rows of A and centred at c, as formula text.
+std::array<std::string, 3> boxAxes(const std::array<Vec3d, 3>& A, const Vec3d& c) {
+    std::array<std::string, 3> l;
+    for (int i = 0; i < 3; ++i) l[std::size_t(i)] = test::dotWith(A[std::size_t(i)], c);
+    return l;
+}
+
+// A box of half-size 0.55 with a square hole through it along its third axis, walls `wall` thick.
+std::string squareHoleBox(const std::array<Vec3d, 3>& A, const Vec3d& c, double wall) {
+    const auto l = boxAxes(A, c);
+    return "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(0.55 - wall) + "-max(abs" + l[0] + ",abs" + l[1] + "))";
+}
+
+const Box3 kHoleBoxBounds{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
+
+} // namespace
+
 TEST_CASE("where the thin search's moves to both sides cross, the shape keeps its genus") {
     // Found at random (box half-size 0.55, rotated by the rows of A, centred at c). Moves into
     // the material's tip at a hole's rim and out of it into the hole's concave edge, each right
     // alone, bridged over each other: a handle; with one side's moves undone, none.
-    auto box = [](const std::array<Vec3d, 3>& A, const Vec3d& c) {
-        std::array<std::string, 3> l;
-        for (int i = 0; i < 3; ++i) l[std::size_t(i)] = test::dotWith(A[std::size_t(i)], c);
-        return l;
-    };
-    const Box3 bounds{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
     {
         // A box with a square hole through it, walls 0.267 (3.5 cells): one piece of genus 1.
-        const auto l = box({Vec3d(-0.6805536267888344, -0.6074846237755704, -0.40964520373222685),
-                            Vec3d(0.43028719030376533, -0.7838903000886619, 0.4476258831741067),
-                            Vec3d(-0.593042742915766, 0.12836833450333998, 0.7948722386470568)},
-                           Vec3d(-0.02578739374998982, -0.03202275585683221, -0.02500339191098431));
-        const std::string frame = "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(0.55 - 0.26728706051800954) +
-                                  "-max(abs" + l[0] + ",abs" + l[1] + "))";
+        const std::string frame = squareHoleBox({Vec3d(-0.6805536267888344, -0.6074846237755704, -0.40964520373222685),
+                                                 Vec3d(0.43028719030376533, -0.7838903000886619, 0.4476258831741067),
+                                                 Vec3d(-0.593042742915766, 0.12836833450333998, 0.7948722386470568)},
+                                                Vec3d(-0.02578739374998982, -0.03202275585683221, -0.02500339191098431), 0.26728706051800954);
         MeshReport rep;
-        ExpressionField f(frame, bounds);
+        ExpressionField f(frame, kHoleBoxBounds);
         MeshRequest req;
         req.voxelSize = 0.07581949249887222;
         const Mesh m = meshField(f, req, rep);
@@ -1237,15 +1248,92 @@ TEST_CASE("where the thin search's moves to both sides cross, the shape keeps it
     }
     {
         // A box notched at a corner by 0.22 of its half-size (1 cell): one piece, no handle.
-        const auto l = box({Vec3d(-0.32758392162301697, -0.5583586910458409, -0.7621839321500159),
-                            Vec3d(-0.9262580021109379, 0.03066100978233971, 0.375640807161018),
-                            Vec3d(-0.18637298039023537, 0.8290328549657741, -0.5272282594548195)},
-                           Vec3d(-0.03281732453645733, 0.028037162822652464, 0.008084530023079496));
+        const auto l = boxAxes({Vec3d(-0.32758392162301697, -0.5583586910458409, -0.7621839321500159),
+                                Vec3d(-0.9262580021109379, 0.03066100978233971, 0.375640807161018),
+                                Vec3d(-0.18637298039023537, 0.8290328549657741, -0.5272282594548195)},
+                               Vec3d(-0.03281732453645733, 0.028037162822652464, 0.008084530023079496));
         const std::string notched = "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(0.21933541101902126 * 0.55) +
                                     "-max(abs(" + l[0] + "-0.55),abs(" + l[1] + "-0.55),abs(" + l[2] + "-0.55)))";
-        const Mesh m = meshFormula(notched, bounds, 0.13200461355812582);
+        const Mesh m = meshFormula(notched, kHoleBoxBounds, 0.13200461355812582);
         requireClosed(m);
         CHECK(piecesWithoutHandles(m, 1));
+    }
+}
+
+TEST_CASE("a node moved into a hole's concave edge near its mouth makes no tunnel through the rim") {
+    // Found at random: marching cubes joins an outside node to the outside node across each face
+    // whose other two corners are inside. A node moved into the hole's concave edge a cell or so
+    // from the mouth was joined so to a node beyond the mouth's rim: the two lie in one piece of
+    // the outside round the rim, but the lattice joined them already, and the face's own inside
+    // parted them: a handle through the rim. A hole under a cell wide is joined to its mouth by
+    // just such a face, and keeps it.
+    struct Case {
+        std::array<Vec3d, 3> axes;
+        Vec3d centre;
+        double wall, h;
+    };
+    const Case cases[] = {
+        // Walls 2 cells, hole 3.5 cells wide: was genus 2.
+        {{Vec3d(0.641764912971112, 0.22009890985510921, -0.7346388679887373), Vec3d(0.7665735920813693, -0.15609972756550014, 0.622894696539827),
+          Vec3d(0.022421516510875664, -0.9629067166317666, -0.26890134001671206)},
+         Vec3d(0.0377176092235426, -0.03965972907903636, -0.039704836588201044),
+         0.2948472014568402,
+         0.1446202996918451},
+        // A hole 0.7 cells wide: was genus 2.
+        {{Vec3d(-0.7959338302328137, -0.3123180393588211, 0.5186007907649045), Vec3d(-0.6010670621398729, 0.30557873887591, -0.7384714084902344),
+          Vec3d(0.07216456680022784, -0.8994882304055292, -0.4309445424419077)},
+         Vec3d(-0.04022681216203777, 0.03310268136396309, -0.03703999803464693),
+         0.46975784998014536,
+         0.23251505699948616},
+        // A hole 0.53 cells wide, open only through such joins at its mouths.
+        {{Vec3d(0.49595667646276587, 0.8680268328784204, -0.023587973102115325), Vec3d(-0.7432088016641357, 0.41027894357166794, -0.5284996363202868),
+          Vec3d(-0.4490742168071628, 0.27964371236409896, 0.848605763552345)},
+         Vec3d(0.048815849860603264, -0.007898641256973274, -0.038444181940772676),
+         0.4881056146112842,
+         0.23275231834863513},
+    };
+    for (const Case& k : cases) {
+        INFO("walls " << k.wall << ", h " << k.h);
+        const Mesh m = meshFormula(squareHoleBox(k.axes, k.centre, k.wall), kHoleBoxBounds, k.h);
+        requireClosed(m);
+        CHECK(countComponents(m) == 1);
+        CHECK(eulerCharacteristic(m) == 0);
+    }
+}
+
+TEST_CASE("holes under a cell wide through plates a few cells thick stay open") {
+    // Found at random, where putting back a node moved out of the inside with a face that tunnels
+    // closed a hole the shape has: a plate 2.6 cells thick with a hole 0.51 cells wide, where the
+    // node's return parted the outside in the hole from the outside beyond; and one 1.7 cells
+    // thick with a hole 0.83 cells wide, where its return made a handle instead of taking one.
+    struct Case {
+        std::array<Vec3d, 3> axes;
+        Vec3d centre;
+        double thickness, radius, h;
+    };
+    const Case cases[] = {
+        {{Vec3d(-0.7251141575417079, -0.4807828390417311, 0.4930084382802712), Vec3d(-0.15422685084716173, 0.8111239627742063, 0.5641737281115058),
+          Vec3d(-0.6711360048532238, 0.33305521868969556, -0.6623070921356743)},
+         Vec3d(-0.04565127096434726, 0.020338208860383594, 0.048318771730967394),
+         0.2862606395060741,
+         0.027627685749334083,
+         0.10856557036048009},
+        {{Vec3d(-0.8526293110058276, -0.23060959848862864, 0.46887361953797424), Vec3d(-0.2385023782423418, -0.6266422162273749, -0.741913841638226),
+          Vec3d(0.46490845721117446, -0.7444049609765893, 0.47929258338406205)},
+         Vec3d(0.0071968227578637495, 0.005137680681427462, 0.002562721380171676),
+         0.14962409788229467,
+         0.03607352896328645,
+         0.08717193478185631},
+    };
+    for (const Case& k : cases) {
+        INFO("thickness " << k.thickness << ", hole radius " << k.radius << ", h " << k.h);
+        const auto l = boxAxes(k.axes, k.centre);
+        const std::string radial = "sqrt(" + l[0] + "^2+" + l[1] + "^2)";
+        const Mesh m = meshFormula("max(abs" + l[2] + "-" + num(k.thickness / 2) + ", " + num(k.radius) + "-" + radial + ", " + radial + "-0.7)",
+                                   kHoleBoxBounds, k.h);
+        requireClosed(m);
+        CHECK(countComponents(m) == 1);
+        CHECK(eulerCharacteristic(m) == 0);
     }
 }
 

@@ -226,6 +226,7 @@ void runMesh(const MeshOptions& o) {
                            {"nodes_moved_hidden_edges", rep.thinEdgesSplit},
                            {"nodes_moved_lone_joins", rep.thinLoneJoined},
                            {"nodes_moved_thin_crossed_undone", rep.thinCrossedUndone},
+                           {"nodes_moved_thin_tunnel_undone", rep.thinTunnelsUndone},
                            {"nodes_centred_thin", rep.thinNodesCentred},
                            {"sharp_edge_cells", rep.sharpEdgeCells},
                            {"sharp_corner_cells", rep.sharpCornerCells},

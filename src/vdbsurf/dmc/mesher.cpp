@@ -192,6 +192,7 @@ Mesh meshField(const Field& field, const MeshRequest& request, MeshReport& repor
         std::sort(loneJoins.begin(), loneJoins.end(), lessXYZ);
         const auto crossedStart = std::chrono::steady_clock::now();
         report.thinCrossedUndone = undoCrossedMoves(field, lattice.frame, report.iso, deformation, loneJoins).size();
+        report.thinTunnelsUndone = undoTunnelJoins(field, lattice.frame, report.iso, to.steps, deformation, loneJoins).size();
         const double crossedSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - crossedStart).count();
         activateCellsAroundMovedNodes(lattice, deformation);
         // (Before the sharp pass moves nodes of its own.) A lone node's join is a neck of a few

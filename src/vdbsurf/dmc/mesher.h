@@ -94,6 +94,7 @@ struct MeshReport {
     std::uint64_t nodesFlipped = 0; // sharp-feature nodes that changed side onto a tip (cases changed around them)
     std::uint64_t flipsUndone = 0;       // flipped and bridged nodes put back: together they changed the inside's topology
     std::uint64_t thinCrossedUndone = 0; // thin-search moves put back where moves to both sides crossed (crossed_moves.h)
+    std::uint64_t thinTunnelsUndone = 0; // thin-search moves out put back where a join across a face tunnelled (crossed_moves.h)
     std::uint64_t fitEdgesSplit = 0, fitCentres = 0; // vertices the surface fit added on edges and in polygons
     std::uint64_t fitFeatureCentres = 0;             // of the centres: on sharp edges and corners
     std::uint64_t simplifyRegionTriangles = 0, simplifyCollapses = 0; // thin parts' triangles, vertices removed there
