@@ -1222,8 +1222,6 @@ std::string squareHoleBox(const std::array<Vec3d, 3>& A, const Vec3d& c, double 
     return "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(0.55 - wall) + "-max(abs" + l[0] + ",abs" + l[1] + "))";
 }
 
-const Box3 kHoleBoxBounds{{-1.05, -1.05, -1.05}, {1.05, 1.05, 1.05}};
-
 } // namespace
 
 TEST_CASE("where the thin search's moves to both sides cross, the shape keeps its genus") {
@@ -1237,7 +1235,7 @@ TEST_CASE("where the thin search's moves to both sides cross, the shape keeps it
                                                  Vec3d(-0.593042742915766, 0.12836833450333998, 0.7948722386470568)},
                                                 Vec3d(-0.02578739374998982, -0.03202275585683221, -0.02500339191098431), 0.26728706051800954);
         MeshReport rep;
-        ExpressionField f(frame, kHoleBoxBounds);
+        ExpressionField f(frame, kBox);
         MeshRequest req;
         req.voxelSize = 0.07581949249887222;
         const Mesh m = meshField(f, req, rep);
@@ -1254,7 +1252,7 @@ TEST_CASE("where the thin search's moves to both sides cross, the shape keeps it
                                Vec3d(-0.03281732453645733, 0.028037162822652464, 0.008084530023079496));
         const std::string notched = "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(0.21933541101902126 * 0.55) +
                                     "-max(abs(" + l[0] + "-0.55),abs(" + l[1] + "-0.55),abs(" + l[2] + "-0.55)))";
-        const Mesh m = meshFormula(notched, kHoleBoxBounds, 0.13200461355812582);
+        const Mesh m = meshFormula(notched, kBox, 0.13200461355812582);
         requireClosed(m);
         CHECK(piecesWithoutHandles(m, 1));
     }
@@ -1294,7 +1292,7 @@ TEST_CASE("a node moved into a hole's concave edge near its mouth makes no tunne
     };
     for (const Case& k : cases) {
         INFO("walls " << k.wall << ", h " << k.h);
-        const Mesh m = meshFormula(squareHoleBox(k.axes, k.centre, k.wall), kHoleBoxBounds, k.h);
+        const Mesh m = meshFormula(squareHoleBox(k.axes, k.centre, k.wall), kBox, k.h);
         requireClosed(m);
         CHECK(countComponents(m) == 1);
         CHECK(eulerCharacteristic(m) == 0);
@@ -1330,7 +1328,7 @@ TEST_CASE("holes under a cell wide through plates a few cells thick stay open") 
         const auto l = boxAxes(k.axes, k.centre);
         const std::string radial = "sqrt(" + l[0] + "^2+" + l[1] + "^2)";
         const Mesh m = meshFormula("max(abs" + l[2] + "-" + num(k.thickness / 2) + ", " + num(k.radius) + "-" + radial + ", " + radial + "-0.7)",
-                                   kHoleBoxBounds, k.h);
+                                   kBox, k.h);
         requireClosed(m);
         CHECK(countComponents(m) == 1);
         CHECK(eulerCharacteristic(m) == 0);
@@ -2374,6 +2372,22 @@ TEST_CASE("a rod whose first node meets the ball's across a face diagonal stays 
         c(0.011179395073635114, 0.0090164402159797069, -0.026215359033632857);
     const std::string f = "min(sqrt(" + radius2(c) + ")-0.5, " + rodFormula(n, c, 0.056127292923334515) + ")";
     const Mesh m = meshFormula(f, kBox, kH);
+    requireClosed(m);
+    CHECK(piecesWithoutHandles(m, 1));
+}
+
+TEST_CASE("a spike whose first node meets the ball's across a face diagonal stays on") {
+    // Found at random: a cone (half-angle tangent 0.092, 5.4 cells long) standing out of a ball of
+    // radius 0.3 at spacing 0.11. Its node next to the ball is inside it at rest, the ball's node
+    // across a face diagonal from it, and the straight segment between them leaves the inside
+    // where the cone meets the ball. The node did not move, so no bent path was sought from it
+    // (only from moved nodes, and across cell diagonals from nodes at rest): the spike came off
+    // (marching cubes at this spacing leaves it apart too). Now a bent path is sought from nodes
+    // at rest across face diagonals as well.
+    const Vec3d c(0.033770107015396442, 0.043218747189362736, -0.015615018520918025);
+    const std::string along = test::dotWith(Vec3d(-0.7788185050252463, 0.49737033587865581, 0.38218383694001684), c);
+    const std::string cone = "max(sqrt(max(" + radius2(c) + "-" + along + "^2,0))-" + num(0.092442881201499252) + "*(0.9-" + along + "), -" + along + ")";
+    const Mesh m = meshFormula("min(sqrt(" + radius2(c) + ")-0.3, " + cone + ")", kBox, 0.11063178501566004);
     requireClosed(m);
     CHECK(piecesWithoutHandles(m, 1));
 }
