@@ -2376,18 +2376,43 @@ TEST_CASE("a rod whose first node meets the ball's across a face diagonal stays 
     CHECK(piecesWithoutHandles(m, 1));
 }
 
+namespace {
+
+// A cone of half-angle tangent `tan` from centre c along d, its tip 0.9 out, standing out of a
+// ball of radius 0.3 about c (a spike of the random stars these cases come from).
+std::string spikeOnBall(const Vec3d& c, const Vec3d& d, double tan) {
+    const std::string along = test::dotWith(d, c);
+    const std::string cone = "max(sqrt(max(" + radius2(c) + "-" + along + "^2,0))-" + num(tan) + "*(0.9-" + along + "), -" + along + ")";
+    return "min(sqrt(" + radius2(c) + ")-0.3, " + cone + ")";
+}
+
+} // namespace
+
 TEST_CASE("a spike whose first node meets the ball's across a face diagonal stays on") {
-    // Found at random: a cone (half-angle tangent 0.092, 5.4 cells long) standing out of a ball of
-    // radius 0.3 at spacing 0.11. Its node next to the ball is inside it at rest, the ball's node
-    // across a face diagonal from it, and the straight segment between them leaves the inside
-    // where the cone meets the ball. The node did not move, so no bent path was sought from it
-    // (only from moved nodes, and across cell diagonals from nodes at rest): the spike came off
-    // (marching cubes at this spacing leaves it apart too). Now a bent path is sought from nodes
-    // at rest across face diagonals as well.
-    const Vec3d c(0.033770107015396442, 0.043218747189362736, -0.015615018520918025);
-    const std::string along = test::dotWith(Vec3d(-0.7788185050252463, 0.49737033587865581, 0.38218383694001684), c);
-    const std::string cone = "max(sqrt(max(" + radius2(c) + "-" + along + "^2,0))-" + num(0.092442881201499252) + "*(0.9-" + along + "), -" + along + ")";
-    const Mesh m = meshFormula("min(sqrt(" + radius2(c) + ")-0.3, " + cone + ")", kBox, 0.11063178501566004);
+    // Found at random: a cone (half-angle tangent 0.092, 5.4 cells long) standing out of a ball at
+    // spacing 0.11. Its node next to the ball is inside it at rest, the ball's node across a face
+    // diagonal from it, and the straight segment between them leaves the inside where the cone
+    // meets the ball. The node did not move, so no bent path was sought from it (only from moved
+    // nodes, and across cell diagonals from nodes at rest): the spike came off (marching cubes at
+    // this spacing leaves it apart too). Now a bent path is sought from nodes at rest across face
+    // diagonals as well.
+    const Mesh m = meshFormula(spikeOnBall(Vec3d(0.033770107015396442, 0.043218747189362736, -0.015615018520918025),
+                                           Vec3d(-0.7788185050252463, 0.49737033587865581, 0.38218383694001684), 0.092442881201499252),
+                               kBox, 0.11063178501566004);
+    requireClosed(m);
+    CHECK(piecesWithoutHandles(m, 1));
+}
+
+TEST_CASE("a spike's root node does not move out for an edge beside it that the ball's surface grazes") {
+    // Found at random: a cone (tangent 0.098) out of a ball at spacing 0.107. The ball's surface
+    // grazes the edge from the root node to a ball node just outside (a sliver inside it, an
+    // outside sample after), and the hidden-edge phase moved the root node out into that sample:
+    // the spike's other nodes, which had each other for company, came off with the spike. A move
+    // out that parts the two inside nodes across the node along an axis, which the lattice joins
+    // nowhere else near and a path bowing less than a cell joins in the field, is refused now.
+    const Mesh m = meshFormula(spikeOnBall(Vec3d(-0.0050895580162997472, 0.042170242612033254, -0.034559053226926498),
+                                           Vec3d(0.38073327883417579, 0.26772747426658783, 0.88507862357590095), 0.098484368566074107),
+                               kBox, 0.10704294377048343);
     requireClosed(m);
     CHECK(piecesWithoutHandles(m, 1));
 }

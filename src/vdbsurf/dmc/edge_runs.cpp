@@ -180,6 +180,53 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
     return false;
 }
 
+bool EdgeRuns::partsJoinedInside(const Coord& c, NodeStates& nodes, std::uint64_t& evaluated) const {
+    // The sides of the nodes within three steps of c, c left out.
+    constexpr int kReach = 3, kWidth = 2 * kReach + 1;
+    std::array<double, kWidth * kWidth * kWidth> values;
+    bool sampled = false;
+    auto index = [&](const Coord& d) { return std::size_t((d.x() + kReach) + kWidth * ((d.y() + kReach) + kWidth * (d.z() + kReach))); };
+    auto insideAt = [&](const Coord& d) {
+        if (!sampled) {
+            mField.sampleNodes(mFrame, {c.x() - kReach, c.y() - kReach, c.z() - kReach}, {kWidth, kWidth, kWidth}, nullptr, values.data());
+            sampled = true;
+        }
+        return d != Coord(0, 0, 0) && validNode(c + d) && nodes.inside(c + d, isInside(values[index(d)], mIso, mSide));
+    };
+    auto position = [&](const Coord& d) {
+        openvdb::Vec3f off(0.0f);
+        nodes.offsets.probeValue(c + d, off);
+        return world(c + d) + Vec3d(off.x(), off.y(), off.z());
+    };
+    // Does the lattice join c + from to c + to by inside nodes (along edges) within reach, not through c?
+    auto latticeJoins = [&](const Coord& from, const Coord& to) {
+        std::array<std::uint8_t, kWidth * kWidth * kWidth> seen{};
+        std::vector<Coord> stack{from};
+        seen[index(from)] = 1;
+        while (!stack.empty()) {
+            const Coord d = stack.back();
+            stack.pop_back();
+            if (d == to) return true;
+            for (int k = 0; k < 6; ++k) {
+                const Coord e = d + axisStep(k / 2, k % 2 ? 1 : -1);
+                if (std::abs(e.x()) > kReach || std::abs(e.y()) > kReach || std::abs(e.z()) > kReach || seen[index(e)] || !insideAt(e)) continue;
+                seen[index(e)] = 1;
+                stack.push_back(e);
+            }
+        }
+        return false;
+    };
+    // Only the two neighbours across c along an axis: two across a face's diagonal that c's move
+    // parts, bridging joins again through the face's other corner (a fractured solid beside a
+    // gap's corner, where refusing such moves welded two pieces together).
+    for (int a = 0; a < 3; ++a) {
+        const Coord below = axisStep(a, -1), above = axisStep(a, 1);
+        if (insideAt(below) && insideAt(above) && !latticeJoins(below, above) && bentPathJoins(position(below), position(above), true, evaluated))
+            return true;
+    }
+    return false;
+}
+
 EdgeRuns::MoveEffect EdgeRuns::moveEffect(const Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
                                           std::uint64_t& evaluated, const JoinReach& outsideReach) const {
     MoveEffect effect;
