@@ -33,10 +33,12 @@ std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& fram
 // through the rim. Each node moved out with such a face, where the inside joins the face's two
 // inside corners on the face itself (sampled at h/(2k), k = `steps`), goes back to rest where
 // that raises the inside's Euler characteristic and changes the pieces of neither side within
-// two steps of it: a tunnel through the inside gone, nothing parted (a crack's node at its rim parts the halves; a
-// tunnel under a cell wide that only such a join opens at its mouth parts the outside in the
-// hole from the outside beyond; both stay). Nodes in order, each judged with those before it put
-// back; `keep`: nodes never put back (sorted). Returns the nodes put back, sorted.
+// two steps of it: a tunnel through the inside gone, nothing parted (a crack's node at its rim
+// parts the halves; a tunnel under a cell wide that only such a join opens at its mouth parts
+// the outside in the hole from the outside beyond; both stay). Judged on the thin search's end
+// state: a crack's moves pass through such states on their way to parting the halves. Nodes in
+// order, each judged with those before it put back; `keep`: nodes never put back (sorted).
+// Returns the nodes put back, sorted.
 std::vector<Vec3i> undoTunnelJoins(const Field& field, const LatticeFrame& frame, double iso, int steps, LatticeDeformation& deformation,
                                    const std::vector<Vec3i>& keep);
 

@@ -184,13 +184,10 @@ bool EdgeRuns::partsJoinedInside(const Coord& c, NodeStates& nodes, std::uint64_
     // The sides of the nodes within three steps of c, c left out.
     constexpr int kReach = 3, kWidth = 2 * kReach + 1;
     std::array<double, kWidth * kWidth * kWidth> values;
-    bool sampled = false;
+    mField.sampleNodes(mFrame, {c.x() - kReach, c.y() - kReach, c.z() - kReach}, {kWidth, kWidth, kWidth}, nullptr, values.data());
+    evaluated += values.size();
     auto index = [&](const Coord& d) { return std::size_t((d.x() + kReach) + kWidth * ((d.y() + kReach) + kWidth * (d.z() + kReach))); };
     auto insideAt = [&](const Coord& d) {
-        if (!sampled) {
-            mField.sampleNodes(mFrame, {c.x() - kReach, c.y() - kReach, c.z() - kReach}, {kWidth, kWidth, kWidth}, nullptr, values.data());
-            sampled = true;
-        }
         return d != Coord(0, 0, 0) && validNode(c + d) && nodes.inside(c + d, isInside(values[index(d)], mIso, mSide));
     };
     auto position = [&](const Coord& d) {
