@@ -8,8 +8,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <set>
-#include <tuple>
 
 namespace vdbsurf {
 
@@ -111,13 +109,14 @@ std::vector<Vec3i> undoCrossedMoves(const Field& field, const LatticeFrame& fram
 
 std::vector<Vec3i> undoTunnelJoins(const Field& field, const LatticeFrame& frame, double iso, int steps, LatticeDeformation& deformation,
                                    const std::vector<Vec3i>& keep) {
-    std::set<std::tuple<int, int, int>> moved;
+    std::vector<Vec3i> moved;
     for (auto it = deformation.offsets->cbeginValueOn(); it; ++it) {
         const openvdb::Coord c = it.getCoord();
-        if (!deformation.onSurface->isValueOn(c)) moved.emplace(c.x(), c.y(), c.z());
+        if (!deformation.onSurface->isValueOn(c)) moved.emplace_back(c.x(), c.y(), c.z());
     }
+    std::sort(moved.begin(), moved.end(), lessXYZ);
     RestSides rest(field, frame, iso);
-    auto isMoved = [&](const Vec3i& n) { return moved.count(std::make_tuple(n.x, n.y, n.z)) > 0; };
+    auto isMoved = [&](const Vec3i& n) { return std::binary_search(moved.begin(), moved.end(), n, lessXYZ); };
     auto current = [&](const Vec3i& n) { return isMoved(n) != rest.inside(n); };
     auto position = [&](const Vec3i& n) {
         openvdb::Vec3f off(0.0f);
@@ -139,8 +138,7 @@ std::vector<Vec3i> undoTunnelJoins(const Field& field, const LatticeFrame& frame
         return false;
     };
     std::vector<Vec3i> candidates;
-    for (const auto& [x, y, z] : moved) {
-        const Vec3i c(x, y, z);
+    for (const Vec3i& c : moved) {
         if (rest.inside(c) && !std::binary_search(keep.begin(), keep.end(), c, lessXYZ)) candidates.push_back(c);
     }
     std::vector<Vec3i> undone;
@@ -155,7 +153,7 @@ std::vector<Vec3i> undoTunnelJoins(const Field& field, const LatticeFrame& frame
         if (piecesInBox(lo, hi, true, current) != piecesInBox(lo, hi, true, backAtRest) ||
             piecesInBox(lo, hi, false, current) != piecesInBox(lo, hi, false, backAtRest))
             continue;
-        moved.erase(std::make_tuple(c.x, c.y, c.z));
+        moved.erase(std::lower_bound(moved.begin(), moved.end(), c, lessXYZ));
         deformation.offsets->setValueOff(openvdb::Coord(c.x, c.y, c.z), openvdb::Vec3f(0.0f));
         undone.push_back(c);
     }
