@@ -180,47 +180,109 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
     return false;
 }
 
-bool EdgeRuns::partsJoinedInside(const Coord& c, NodeStates& nodes, std::uint64_t& evaluated) const {
-    // The sides of the nodes within three steps of c, c left out.
-    constexpr int kReach = 3, kWidth = 2 * kReach + 1;
+bool EdgeRuns::partsJoined(const Coord& c, bool inside, NodeStates& nodes, std::uint64_t& evaluated) const {
+    // The nodes within three steps of c, c left out; the outside joins across face diagonals too,
+    // as marching cubes joins it.
+    constexpr int kReach = 3, kWidth = 2 * kReach + 1, kOutsidePath = 4;
+    const int reach = inside ? 6 : 18;
+    // c's 3x3x3 first; the wider window only when a path must leave it.
+    std::array<double, 27> close;
     std::array<double, kWidth * kWidth * kWidth> values;
-    mField.sampleNodes(mFrame, {c.x() - kReach, c.y() - kReach, c.z() - kReach}, {kWidth, kWidth, kWidth}, nullptr, values.data());
-    evaluated += values.size();
+    bool wide = false;
+    mField.sampleNodes(mFrame, {c.x() - 1, c.y() - 1, c.z() - 1}, {3, 3, 3}, nullptr, close.data());
+    evaluated += close.size();
     auto index = [&](const Coord& d) { return std::size_t((d.x() + kReach) + kWidth * ((d.y() + kReach) + kWidth * (d.z() + kReach))); };
-    auto insideAt = [&](const Coord& d) {
-        return d != Coord(0, 0, 0) && validNode(c + d) && nodes.inside(c + d, isInside(values[index(d)], mIso, mSide));
+    auto onSide = [&](const Coord& d) {
+        if (d == Coord(0, 0, 0) || !validNode(c + d)) return false;
+        double v = 0;
+        if (std::max({std::abs(d.x()), std::abs(d.y()), std::abs(d.z())}) <= 1) {
+            v = close[std::size_t((d.x() + 1) + 3 * (d.y() + 1) + 9 * (d.z() + 1))];
+        } else {
+            if (!wide) {
+                mField.sampleNodes(mFrame, {c.x() - kReach, c.y() - kReach, c.z() - kReach}, {kWidth, kWidth, kWidth}, nullptr, values.data());
+                evaluated += values.size();
+                wide = true;
+            }
+            v = values[index(d)];
+        }
+        return nodes.inside(c + d, isInside(v, mIso, mSide)) == inside;
     };
     auto position = [&](const Coord& d) {
         openvdb::Vec3f off(0.0f);
         nodes.offsets.probeValue(c + d, off);
         return world(c + d) + Vec3d(off.x(), off.y(), off.z());
     };
-    // Does the lattice join c + from to c + to by inside nodes (along edges) within reach, not through c?
-    auto latticeJoins = [&](const Coord& from, const Coord& to) {
+    // Does the lattice join c + from to c + to by nodes of the side within `box` steps of c, not
+    // through c, by a path of at most `length` steps?
+    auto latticeJoins = [&](const Coord& from, const Coord& to, int box, int length) {
         std::array<std::uint8_t, kWidth * kWidth * kWidth> seen{};
-        std::vector<Coord> stack{from};
+        std::vector<Coord> queue{from};
+        std::vector<int> steps{0};
         seen[index(from)] = 1;
-        while (!stack.empty()) {
-            const Coord d = stack.back();
-            stack.pop_back();
-            if (d == to) return true;
-            for (int k = 0; k < 6; ++k) {
-                const Coord e = d + axisStep(k / 2, k % 2 ? 1 : -1);
-                if (std::abs(e.x()) > kReach || std::abs(e.y()) > kReach || std::abs(e.z()) > kReach || seen[index(e)] || !insideAt(e)) continue;
+        for (std::size_t head = 0; head < queue.size(); ++head) {
+            if (queue[head] == to) return true;
+            if (steps[head] == length) continue;
+            for (int k = 0; k < reach; ++k) {
+                const Coord e = queue[head] + faceNeighbourSteps()[std::size_t(k)];
+                if (std::abs(e.x()) > box || std::abs(e.y()) > box || std::abs(e.z()) > box || seen[index(e)] || !onSide(e)) continue;
                 seen[index(e)] = 1;
-                stack.push_back(e);
+                queue.push_back(e);
+                steps.push_back(steps[head] + 1);
             }
         }
         return false;
     };
-    // Only the two neighbours across c along an axis: two across a face's diagonal that c's move
-    // parts, bridging joins again through the face's other corner (a fractured solid beside a
-    // gap's corner, where refusing such moves welded two pieces together).
-    for (int a = 0; a < 3; ++a) {
-        const Coord below = axisStep(a, -1), above = axisStep(a, 1);
-        if (insideAt(below) && insideAt(above) && !latticeJoins(below, above) && bentPathJoins(position(below), position(above), true, evaluated))
-            return true;
+    // Inside, only the two neighbours across c along an axis: two across a face's diagonal that
+    // c's move parts, bridging joins again through the face's other corner (a fractured solid
+    // beside a gap's corner, where refusing such moves welded two pieces together).
+    if (inside) {
+        for (int a = 0; a < 3; ++a) {
+            const Coord below = axisStep(a, -1), above = axisStep(a, 1);
+            if (onSide(below) && onSide(above) && !latticeJoins(below, above, kReach, kWidth * kWidth * kWidth) &&
+                bentPathJoins(position(below), position(above), true, evaluated))
+                return true;
+        }
+        return false;
     }
+    // Outside, any two of c's neighbours (along edges and face diagonals) that the lattice joins
+    // only through c, or by paths longer than four steps: the nearest such pair of each two
+    // groups, asked whether the field joins them. (Round a thin plate's rim a cell away, the
+    // outside above and below it is joined within four steps, and a bridge into the plate there
+    // parts nothing the lattice needs; round a plate with a hole, it is not.)
+    std::vector<Coord> near;
+    for (int k = 0; k < reach; ++k)
+        if (onSide(faceNeighbourSteps()[std::size_t(k)])) near.push_back(faceNeighbourSteps()[std::size_t(k)]);
+    // Groups joined within c's 3x3x3 first (no further samples), then within the window.
+    std::vector<int> group(near.size());
+    for (std::size_t i = 0; i < near.size(); ++i) group[i] = int(i);
+    auto merge = [&](int box, int length) {
+        for (std::size_t i = 0; i < near.size(); ++i)
+            for (std::size_t j = 0; j < i; ++j)
+                if (group[i] != group[j] && latticeJoins(near[j], near[i], box, length)) {
+                    const int from = group[i];
+                    for (int& g : group)
+                        if (g == from) g = group[j];
+                }
+    };
+    merge(1, 26);
+    if (std::all_of(group.begin(), group.end(), [&](int g) { return g == group[0]; })) return false;
+    merge(kReach, kOutsidePath);
+    std::vector<int> groups(group);
+    std::sort(groups.begin(), groups.end());
+    groups.erase(std::unique(groups.begin(), groups.end()), groups.end());
+    for (std::size_t gi = 0; gi < groups.size(); ++gi)
+        for (std::size_t gj = gi + 1; gj < groups.size(); ++gj) {
+            // The nearest pair of the two groups (the first in order among equals).
+            double best = INFINITY;
+            Coord a, b;
+            for (std::size_t x = 0; x < near.size(); ++x)
+                for (std::size_t y = 0; y < near.size(); ++y)
+                    if (group[x] == groups[gi] && group[y] == groups[gj]) {
+                        const double d = (near[x] - near[y]).asVec3d().lengthSqr();
+                        if (d < best) best = d, a = near[x], b = near[y];
+                    }
+            if (bentPathJoins(position(a), position(b), false, evaluated)) return true;
+        }
     return false;
 }
 

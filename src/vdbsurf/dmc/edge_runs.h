@@ -119,14 +119,18 @@ public:
     MoveEffect moveEffect(const openvdb::Coord& c, bool inside, const Vec3d& to, NodeStates& nodes, std::uint64_t& examined,
                           std::uint64_t& evaluated, const JoinReach& outsideReach = kRimReach) const;
 
-    // Would taking inside node c out of the inside part its two inside neighbours across it along
-    // an axis (the lattice joining them within three steps of c only through c) where the field
-    // joins them by a path bowing less than a cell from the segment between them (bentPathJoins)?
-    // `nodes` as they stand. The hidden-edge phase moves a node into the outside that an edge
+    // Would moving node c (on side `inside`) to the other side part nodes of its side that the
+    // lattice joins, within three steps of c, only through c (outside: by no path of four steps
+    // but through c), where the field joins them by a path bowing less than a cell from the
+    // segment between them (bentPathJoins)? `nodes` as they stand. Inside, the two neighbours
+    // across c along an axis: the hidden-edge phase moves a node into the outside that an edge
     // hides; where a ball's surface grazed an edge beside a spike's root, the root node so moved
-    // cut the spike off the ball (its other nodes had each other for company). A crack's halves
-    // are not joined across it.
-    bool partsJoinedInside(const openvdb::Coord& c, NodeStates& nodes, std::uint64_t& evaluated) const;
+    // cut the spike off the ball (its other nodes had each other for company). Outside, any two
+    // of its neighbours along edges and face diagonals: bridging moved the one node in a hole
+    // about a cell wide through a plate two cells thick into the plate, to join two of the
+    // plate's nodes across a face beside the hole, and closed the hole. A crack's halves, the two
+    // sides of a sheet, are not joined across it.
+    bool partsJoined(const openvdb::Coord& c, bool inside, NodeStates& nodes, std::uint64_t& evaluated) const;
 
     bool validNode(const openvdb::Coord& c) const {
         return c.x() >= mNodeLo.x() && c.y() >= mNodeLo.y() && c.z() >= mNodeLo.z() && c.x() <= mNodeHi.x() &&

@@ -210,7 +210,7 @@ private:
     bool improves(const Coord& c, bool inside, const Vec3d& to, std::size_t gained, NodeStates& nodes, std::uint64_t& examined,
                   std::uint64_t& evaluated, const EdgeRuns::JoinReach& outsideReach) const {
         const EdgeRuns::MoveEffect effect = mRuns.moveEffect(c, inside, to, nodes, examined, evaluated, outsideReach);
-        return effect.keeps && !effect.alone && effect.after < effect.before + gained && !(inside && mRuns.partsJoinedInside(c, nodes, evaluated));
+        return effect.keeps && !effect.alone && effect.after < effect.before + gained && !(inside && mRuns.partsJoined(c, true, nodes, evaluated));
     }
 
     Vec3d world(const Coord& c) const { return mRuns.world(c); }

@@ -714,6 +714,9 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // Node n moving by `off` becomes `best` if it lands nearer `middle` than `best` does
                 // — unless the move would make one of its edges hide what it showed (a crack's
                 // node pulled into the solid beside it), or n stands at a feature.
+                // The inside node a straight bridge joins p to, if the bridge may be one the lattice
+                // does not need (see bridgeTo).
+                const Vec3i* joinedAlready = nullptr;
                 auto consider = [&](const Coord& n, const Vec3f& off, const Vec3d& middle, std::optional<Bridge>& best,
                                     double& bestDistance) {
                     const Vec3d to = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off);
@@ -723,6 +726,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     const bool restInside = isInside(rest(d.x(), d.y(), d.z()), iso, side);
                     if (!edgeRuns.moveEffect(n, restInside, to, nodes, examined, evaluated).keeps) return;
                     if (standsAtFeature(n, restInside, nodes, evaluated)) return;
+                    if (joinedAlready && !restInside && edgeRuns.partsJoined(n, false, nodes, evaluated) && latticeJoins(*joinedAlready)) return;
                     bestDistance = dist, best = Bridge{n, off};
                 };
                 // The samples of Ω around node b (an offset from p, at rest) on its other side, in `found`.
@@ -833,8 +837,17 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                         return edgeRuns.joinedNearby(pPos, qPos, true, evaluated, kBentReach, &path) ||
                                edgeRuns.joinedNearby(qPos, pPos, true, evaluated, kBentReach, &path);
                     };
-                    if (onPSide(pPos, qPos, steps))
+                    if (onPSide(pPos, qPos, steps)) {
+                        // Not by an outside node that alone joins outside nodes around it which
+                        // the field joins, where the lattice joins p and q already: the one node in
+                        // a hole under a cell wide through a plate two cells thick was so moved
+                        // into the plate, to join two of its nodes across a face beside the hole,
+                        // and the hole closed (2 of 60 random such plates, which marching cubes
+                        // kept open). Where only the bridge joins p and q, it still may.
+                        joinedAlready = pInside ? &q : nullptr;
                         bridge(between, (pPos + qPos) * 0.5, &qPos);
+                        joinedAlready = nullptr;
+                    }
                     else if ((pMoved || bentFromRest) && pInside && bentJoins() && !latticeJoins(q))
                         bridge(between, (pPos + qPos) * 0.5, &qPos, std::max({std::abs(q.x), std::abs(q.y), std::abs(q.z)}) > 1 ? nullptr : &path);
                     else if (viaPoint && pInside && !latticeJoins(q))
