@@ -1374,6 +1374,39 @@ TEST_CASE("a hole about a cell wide through a plate two cells thick, open in mar
     }
 }
 
+TEST_CASE("a hole under a cell wide slantwise through a box is kept through the box's faces") {
+    // Found at random (boxes of half-size 0.55 with a round hole 0.3-1 H wide; marching cubes
+    // loses nearly all): the node in the hole nearest a face could reach the node beyond the face
+    // only along a bent path, and the hole ended a cell short of the face.
+    struct Case {
+        std::array<Vec3d, 3> axes;
+        Vec3d centre;
+        double radius, h;
+    };
+    const Case cases[] = {
+        {{Vec3d(-0.2702670687420372, -0.7692544318733809, 0.5789674693769491), Vec3d(0.03255207503496038, 0.5937015203390059, 0.8040266582384388),
+          Vec3d(-0.9622349369901848, 0.23614852061851832, -0.13541714162239593)},
+         Vec3d(0.03941087419840049, -0.005522197535108929, 0.00352428245061924),
+         0.0264987159806586,
+         0.11036313824741087},
+        {{Vec3d(-0.5167544316624206, 0.014919999573256293, 0.8560036512597256), Vec3d(-0.842379350008842, 0.1696424809982212, -0.5114865191962038),
+          Vec3d(-0.1528459617913695, -0.9853927248835875, -0.07509520431138661)},
+         Vec3d(0.020490182423895456, -0.005919299748582255, 0.043237660991822455),
+         0.03310174453909406,
+         0.09280516801540628},
+    };
+    for (const Case& k : cases) {
+        INFO("hole " << 2 * k.radius / k.h << " H wide, h " << k.h);
+        const auto l = boxAxes(k.axes, k.centre);
+        const Mesh m = meshFormula("max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(k.radius) + "-sqrt(" + l[0] + "^2+" +
+                                       l[1] + "^2))",
+                                   kBox, k.h);
+        requireClosed(m);
+        CHECK(countComponents(m) == 1);
+        CHECK(eulerCharacteristic(m) == 0);
+    }
+}
+
 TEST_CASE("a concave corner 1.4 cells below a notch's rim is kept, not cut off by bridging") {
     // Found at random: the one outside node beside the corner node was bridged into the solid
     // (to join a node flipped onto the rim), the corner node lost its last crossing, and the

@@ -648,6 +648,14 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // Side of the node at offset (x, y, z) from p, where it is now.
                 auto insideAt = [&](int x, int y, int z) { return nodes.inside(p.offsetBy(x, y, z), isInside(rest(x, y, z), iso, side)); };
                 const bool pInside = insideAt(0, 0, 0);
+                // Does p end a part of its side thinner than a cell, or stand alone (at most one of
+                // its six neighbours on its side)?
+                int ownSide = 0;
+                for (int k = 0; k < 6; ++k) {
+                    const Coord e = axisStep(k / 2, k % 2 ? 1 : -1);
+                    ownSide += insideAt(e.x(), e.y(), e.z()) == pInside;
+                }
+                const bool endsThinPart = ownSide <= 1;
                 bool pMoved = false;
                 const Vec3d pPos = position(0, 0, 0, pMoved);
                 // Does the segment from a to b stay on p's side at `steps` steps?
@@ -803,15 +811,30 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // Joined is checked at steps finer than the thinnest part the search keeps: coarser
                 // steps could step over a sheet of the other side between p and q, and a node
                 // moved across that sheet would join its two sides (a thin shell's surfaces).
-                // (`unlessJoined`: along the straight segment only, where the lattice does not join
-                // p and q already; `bentFromRest`: a bent path is sought from p at rest too.)
+                // (`unlessJoined`: where the lattice does not join p and q already, along the straight
+                // segment, or a bent path from the end of a thin part; `bentFromRest`: a bent path is
+                // sought from p at rest too.)
                 auto bridgeTo = [&](const Vec3i& q, const std::vector<Vec3i>& between, bool viaPoint = false, bool unlessJoined = false,
                                     bool bentFromRest = false) {
                     bool moved = false;
                     const Vec3d qPos = position(q.x, q.y, q.z, moved);
                     const int steps = int(std::ceil(length(qPos - pPos) / frame.h * (options.steps + 1)));
                     if (unlessJoined) {
-                        if (onPSide(pPos, qPos, steps) && !latticeJoins(q)) bridge(between, (pPos + qPos) * 0.5, &qPos);
+                        if (onPSide(pPos, qPos, steps)) {
+                            if (!latticeJoins(q)) bridge(between, (pPos + qPos) * 0.5, &qPos);
+                        } else if (endsThinPart) {
+                            // A hole thinner than a cell through a solid pierces the face slantwise:
+                            // the segment from the node in the hole, where the lattice's hole ends,
+                            // to the node beyond leaves it, and the path bends (44 of 240 random
+                            // boxes with a hole 0.3-1 H wide were wrong, 12 now). Only from such an end:
+                            // the outside either side of a sheet a cell thick is another pierced
+                            // face, and the search spends its budget there (smoke_fog at its voxel
+                            // size: 35 % more thin-search samples from every outside node, 2.6 %
+                            // from these).
+                            std::vector<Vec3d> path;
+                            if (edgeRuns.joinedNearby(pPos, qPos, pInside, evaluated, EdgeRuns::kRimReach, &path) && !latticeJoins(q))
+                                bridge(between, (pPos + qPos) * 0.5, &qPos, &path);
+                        }
                         return;
                     }
                     // Or, from an inside node the search moved into a thin part, along a path that
