@@ -1377,7 +1377,9 @@ TEST_CASE("a hole about a cell wide through a plate two cells thick, open in mar
 TEST_CASE("a hole under a cell wide slantwise through a box is kept through the box's faces") {
     // Found at random (boxes of half-size 0.55 with a round hole 0.3-1 H wide; marching cubes
     // loses nearly all): the node in the hole nearest a face could reach the node beyond the face
-    // only along a bent path, and the hole ended a cell short of the face.
+    // only along a bent path, and the hole ended a cell short of the face (the first two); the
+    // node in a hole's mouth was bridged into the box, to join two of its nodes across a face
+    // beside the mouth (the third).
     struct Case {
         std::array<Vec3d, 3> axes;
         Vec3d centre;
@@ -1394,6 +1396,11 @@ TEST_CASE("a hole under a cell wide slantwise through a box is kept through the 
          Vec3d(0.020490182423895456, -0.005919299748582255, 0.043237660991822455),
          0.03310174453909406,
          0.09280516801540628},
+        {{Vec3d(0.17279871845488193, -0.2736901735789053, 0.9461682153754157), Vec3d(-0.4990154897884506, -0.852533077107331, -0.15546991152341583),
+          Vec3d(0.8491902871862956, -0.4452875939482872, -0.2838922591833073)},
+         Vec3d(-0.04929532716083797, -0.046803254572271094, -0.018473190728800506),
+         0.04365395263143357,
+         0.1284053001995713},
     };
     for (const Case& k : cases) {
         INFO("hole " << 2 * k.radius / k.h << " H wide, h " << k.h);
