@@ -180,6 +180,30 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
     return false;
 }
 
+bool latticePathNear(const Coord& from, const Coord& to, int box, int length, bool faceDiagonals,
+                     const std::function<bool(const Coord&)>& onSide) {
+    const int width = 2 * box + 1;
+    auto index = [&](const Coord& d) { return std::size_t((d.x() + box) + width * ((d.y() + box) + width * (d.z() + box))); };
+    std::vector<std::uint8_t> seen(std::size_t(width) * std::size_t(width) * std::size_t(width), 0);
+    std::vector<Coord> queue{from};
+    std::vector<int> steps{0};
+    seen[index(from)] = 1;
+    const int reach = faceDiagonals ? 18 : 6;
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+        if (queue[head] == to) return true;
+        if (steps[head] == length) continue;
+        for (int k = 0; k < reach; ++k) {
+            const Coord e = queue[head] + faceNeighbourSteps()[std::size_t(k)];
+            if (std::abs(e.x()) > box || std::abs(e.y()) > box || std::abs(e.z()) > box || seen[index(e)]) continue;
+            seen[index(e)] = 1;
+            if (!onSide(e)) continue;
+            queue.push_back(e);
+            steps.push_back(steps[head] + 1);
+        }
+    }
+    return false;
+}
+
 bool EdgeRuns::partsJoined(const Coord& c, bool inside, NodeStates& nodes, std::uint64_t& evaluated) const {
     // The nodes within three steps of c, c left out; the outside joins across face diagonals too,
     // as marching cubes joins it.
@@ -212,25 +236,9 @@ bool EdgeRuns::partsJoined(const Coord& c, bool inside, NodeStates& nodes, std::
         nodes.offsets.probeValue(c + d, off);
         return world(c + d) + Vec3d(off.x(), off.y(), off.z());
     };
-    // Does the lattice join c + from to c + to by nodes of the side within `box` steps of c, not
-    // through c, by a path of at most `length` steps?
+    // (c itself is on no side: paths do not pass through it.)
     auto latticeJoins = [&](const Coord& from, const Coord& to, int box, int length) {
-        std::array<std::uint8_t, kWidth * kWidth * kWidth> seen{};
-        std::vector<Coord> queue{from};
-        std::vector<int> steps{0};
-        seen[index(from)] = 1;
-        for (std::size_t head = 0; head < queue.size(); ++head) {
-            if (queue[head] == to) return true;
-            if (steps[head] == length) continue;
-            for (int k = 0; k < reach; ++k) {
-                const Coord e = queue[head] + faceNeighbourSteps()[std::size_t(k)];
-                if (std::abs(e.x()) > box || std::abs(e.y()) > box || std::abs(e.z()) > box || seen[index(e)] || !onSide(e)) continue;
-                seen[index(e)] = 1;
-                queue.push_back(e);
-                steps.push_back(steps[head] + 1);
-            }
-        }
-        return false;
+        return latticePathNear(from, to, box, length, !inside, onSide);
     };
     // Inside, only the two neighbours across c along an axis: two across a face's diagonal that
     // c's move parts, bridging joins again through the face's other corner (a fractured solid

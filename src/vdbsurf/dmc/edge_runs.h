@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace vdbsurf {
@@ -52,6 +53,13 @@ inline const std::array<openvdb::Coord, 18>& faceNeighbourSteps() {
     }();
     return steps;
 }
+
+// Does the lattice join the nodes at offsets `from` and `to` from a centre through nodes that
+// `onSide` accepts (asked by offset), stepping along edges or, with `faceDiagonals`, across faces'
+// diagonals too (as marching cubes joins the outside), within `box` steps of the centre along
+// each axis, by a path of at most `length` steps?
+bool latticePathNear(const openvdb::Coord& from, const openvdb::Coord& to, int box, int length, bool faceDiagonals,
+                     const std::function<bool(const openvdb::Coord&)>& onSide);
 
 // Does `moved` hold a node whose move can change what moving c does (EdgeRuns::moveEffect): one
 // of the 26 around c, or two steps from it along an axis?

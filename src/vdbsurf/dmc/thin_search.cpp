@@ -689,27 +689,11 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                                           {kLatticeJoinWidth, kLatticeJoinWidth, kLatticeJoinWidth}, nullptr, window.data());
                         evaluated += window.size();
                     }
-                    auto at = [&](const Vec3i& o) {
-                        const Vec3i w = o + Vec3i(kLatticeJoinSteps, kLatticeJoinSteps, kLatticeJoinSteps);
-                        return std::size_t(w.x + kLatticeJoinWidth * (w.y + kLatticeJoinWidth * w.z));
-                    };
-                    std::vector<std::uint8_t> seen(window.size(), 0);
-                    std::vector<Vec3i> queue{Vec3i(0, 0, 0)};
-                    std::vector<int> steps{0};
-                    seen[at(queue[0])] = 1;
-                    const int reach = pInside ? 6 : 18; // steps across faces; outside, across face diagonals too
-                    for (std::size_t head = 0; head < queue.size(); ++head)
-                        for (int k = 0; k < reach && steps[head] < kLatticeJoinPath; ++k) {
-                            const Coord& d = faceNeighbourSteps()[std::size_t(k)];
-                            const Vec3i n = queue[head] + Vec3i(d.x(), d.y(), d.z());
-                            if (std::max({std::abs(n.x), std::abs(n.y), std::abs(n.z)}) > kLatticeJoinSteps || seen[at(n)]) continue;
-                            seen[at(n)] = 1;
-                            if (nodes.inside(p.offsetBy(n.x, n.y, n.z), isInside(window[at(n)], iso, side)) != pInside) continue;
-                            if (n == q) return true;
-                            queue.push_back(n);
-                            steps.push_back(steps[head] + 1);
-                        }
-                    return false;
+                    return latticePathNear(Coord(0, 0, 0), Coord(q.x, q.y, q.z), kLatticeJoinSteps, kLatticeJoinPath, !pInside, [&](const Coord& n) {
+                        const std::size_t at = std::size_t((n.x() + kLatticeJoinSteps) +
+                                                           kLatticeJoinWidth * ((n.y() + kLatticeJoinSteps) + kLatticeJoinWidth * (n.z() + kLatticeJoinSteps)));
+                        return nodes.inside(p + n, isInside(window[at], iso, side)) == pInside;
+                    });
                 };
                 // Do all these nodes (offsets from p) lie on the other side from p?
                 auto separate = [&](const std::vector<Vec3i>& nodes) {
