@@ -1216,12 +1216,34 @@ std::array<std::string, 3> boxAxes(const std::array<Vec3d, 3>& A, const Vec3d& c
     return l;
 }
 
-// A disc of radius 0.7 and the given thickness across the third axis, with a round hole of the
-// given radius through its middle.
-std::string holedDisc(const std::array<Vec3d, 3>& A, const Vec3d& c, double thickness, double radius) {
-    const auto l = boxAxes(A, c);
-    const std::string radial = "sqrt(" + l[0] + "^2+" + l[1] + "^2)";
-    return "max(abs" + l[2] + "-" + num(thickness / 2) + ", " + num(radius) + "-" + radial + ", " + radial + "-0.7)";
+// A disc of radius 0.7 and the given thickness across the third axis of a frame rotated by the
+// rows of `axes` and centred at `centre`, with a round hole of the given radius through its middle.
+struct HoledDisc {
+    std::array<Vec3d, 3> axes;
+    Vec3d centre;
+    double thickness, radius, h;
+
+    std::string formula() const {
+        const auto l = boxAxes(axes, centre);
+        const std::string radial = "sqrt(" + l[0] + "^2+" + l[1] + "^2)";
+        return "max(abs" + l[2] + "-" + num(thickness / 2) + ", " + num(radius) + "-" + radial + ", " + radial + "-0.7)";
+    }
+};
+
+// A box of half-size 0.55 rotated by the rows of `axes`, centred at `centre`, with a hole through
+// it along its third axis of the given size (a square hole's wall, a round hole's radius),
+// meshed at spacing h.
+struct HoledBox {
+    std::array<Vec3d, 3> axes;
+    Vec3d centre;
+    double size, h;
+};
+
+// One closed piece with one hole through it.
+void requireOnePieceOfGenusOne(const Mesh& m) {
+    requireClosed(m);
+    CHECK(countComponents(m) == 1);
+    CHECK(eulerCharacteristic(m) == 0);
 }
 
 // A box of half-size 0.55 with a square hole through it along its third axis, walls `wall` thick.
@@ -1273,12 +1295,7 @@ TEST_CASE("a node moved into a hole's concave edge near its mouth makes no tunne
     // the outside round the rim, but the lattice joined them already, and the face's own inside
     // parted them: a handle through the rim. A hole under a cell wide is joined to its mouth by
     // just such a face, and keeps it.
-    struct Case {
-        std::array<Vec3d, 3> axes;
-        Vec3d centre;
-        double wall, h;
-    };
-    const Case cases[] = {
+    const HoledBox cases[] = {
         // Walls 2 cells, hole 3.5 cells wide: was genus 2.
         {{Vec3d(0.641764912971112, 0.22009890985510921, -0.7346388679887373), Vec3d(0.7665735920813693, -0.15609972756550014, 0.622894696539827),
           Vec3d(0.022421516510875664, -0.9629067166317666, -0.26890134001671206)},
@@ -1298,12 +1315,9 @@ TEST_CASE("a node moved into a hole's concave edge near its mouth makes no tunne
          0.4881056146112842,
          0.23275231834863513},
     };
-    for (const Case& k : cases) {
-        INFO("walls " << k.wall << ", h " << k.h);
-        const Mesh m = meshFormula(squareHoleBox(k.axes, k.centre, k.wall), kBox, k.h);
-        requireClosed(m);
-        CHECK(countComponents(m) == 1);
-        CHECK(eulerCharacteristic(m) == 0);
+    for (const HoledBox& k : cases) {
+        INFO("walls " << k.size << ", h " << k.h);
+        requireOnePieceOfGenusOne(meshFormula(squareHoleBox(k.axes, k.centre, k.size), kBox, k.h));
     }
 }
 
@@ -1312,12 +1326,7 @@ TEST_CASE("holes under a cell wide through plates a few cells thick stay open") 
     // closed a hole the shape has: a plate 2.6 cells thick with a hole 0.51 cells wide, where the
     // node's return parted the outside in the hole from the outside beyond; and one 1.7 cells
     // thick with a hole 0.83 cells wide, where its return made a handle instead of taking one.
-    struct Case {
-        std::array<Vec3d, 3> axes;
-        Vec3d centre;
-        double thickness, radius, h;
-    };
-    const Case cases[] = {
+    const HoledDisc cases[] = {
         {{Vec3d(-0.7251141575417079, -0.4807828390417311, 0.4930084382802712), Vec3d(-0.15422685084716173, 0.8111239627742063, 0.5641737281115058),
           Vec3d(-0.6711360048532238, 0.33305521868969556, -0.6623070921356743)},
          Vec3d(-0.04565127096434726, 0.020338208860383594, 0.048318771730967394),
@@ -1331,24 +1340,16 @@ TEST_CASE("holes under a cell wide through plates a few cells thick stay open") 
          0.03607352896328645,
          0.08717193478185631},
     };
-    for (const Case& k : cases) {
+    for (const HoledDisc& k : cases) {
         INFO("thickness " << k.thickness << ", hole radius " << k.radius << ", h " << k.h);
-        const Mesh m = meshFormula(holedDisc(k.axes, k.centre, k.thickness, k.radius), kBox, k.h);
-        requireClosed(m);
-        CHECK(countComponents(m) == 1);
-        CHECK(eulerCharacteristic(m) == 0);
+        requireOnePieceOfGenusOne(meshFormula(k.formula(), kBox, k.h));
     }
 }
 
 TEST_CASE("a hole about a cell wide through a plate two cells thick, open in marching cubes, is not closed by bridging") {
     // Found at random: the one node in the hole was bridged into the plate, to join two of the
     // plate's nodes across a face beside the hole that the lattice joins round the hole anyway.
-    struct Case {
-        std::array<Vec3d, 3> axes;
-        Vec3d centre;
-        double thickness, radius, h;
-    };
-    const Case cases[] = {
+    const HoledDisc cases[] = {
         {{Vec3d(0.2848428001721588, -0.17280531891621906, 0.942869503666519), Vec3d(0.5646785480047873, 0.8250835359978933, -0.01937255916027092),
           Vec3d(-0.7745984228058364, 0.5379363162861167, 0.3325985613427008)},
          Vec3d(-0.02761030944273061, 0.015515333951485619, 0.034978385967802644),
@@ -1362,15 +1363,10 @@ TEST_CASE("a hole about a cell wide through a plate two cells thick, open in mar
          0.11260071555795574,
          0.20543075370551256},
     };
-    for (const Case& k : cases) {
+    for (const HoledDisc& k : cases) {
         INFO("thickness " << k.thickness / k.h << " H, hole " << 2 * k.radius / k.h << " H wide");
-        const std::string disc = holedDisc(k.axes, k.centre, k.thickness, k.radius);
-        const Mesh mc = meshFormula(disc, kBox, k.h, MeshMethod::MarchingCubes);
-        REQUIRE(eulerCharacteristic(mc) == 0);
-        const Mesh m = meshFormula(disc, kBox, k.h);
-        requireClosed(m);
-        CHECK(countComponents(m) == 1);
-        CHECK(eulerCharacteristic(m) == 0);
+        REQUIRE(eulerCharacteristic(meshFormula(k.formula(), kBox, k.h, MeshMethod::MarchingCubes)) == 0);
+        requireOnePieceOfGenusOne(meshFormula(k.formula(), kBox, k.h));
     }
 }
 
@@ -1380,12 +1376,7 @@ TEST_CASE("a hole under a cell wide slantwise through a box is kept through the 
     // only along a bent path, and the hole ended a cell short of the face (the first two); the
     // node in a hole's mouth was bridged into the box, to join two of its nodes across a face
     // beside the mouth (the third).
-    struct Case {
-        std::array<Vec3d, 3> axes;
-        Vec3d centre;
-        double radius, h;
-    };
-    const Case cases[] = {
+    const HoledBox cases[] = {
         {{Vec3d(-0.2702670687420372, -0.7692544318733809, 0.5789674693769491), Vec3d(0.03255207503496038, 0.5937015203390059, 0.8040266582384388),
           Vec3d(-0.9622349369901848, 0.23614852061851832, -0.13541714162239593)},
          Vec3d(0.03941087419840049, -0.005522197535108929, 0.00352428245061924),
@@ -1402,15 +1393,12 @@ TEST_CASE("a hole under a cell wide slantwise through a box is kept through the 
          0.04365395263143357,
          0.1284053001995713},
     };
-    for (const Case& k : cases) {
-        INFO("hole " << 2 * k.radius / k.h << " H wide, h " << k.h);
+    for (const HoledBox& k : cases) {
+        INFO("hole " << 2 * k.size / k.h << " H wide, h " << k.h);
         const auto l = boxAxes(k.axes, k.centre);
-        const Mesh m = meshFormula("max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(k.radius) + "-sqrt(" + l[0] + "^2+" +
-                                       l[1] + "^2))",
-                                   kBox, k.h);
-        requireClosed(m);
-        CHECK(countComponents(m) == 1);
-        CHECK(eulerCharacteristic(m) == 0);
+        requireOnePieceOfGenusOne(meshFormula("max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(k.size) + "-sqrt(" +
+                                                  l[0] + "^2+" + l[1] + "^2))",
+                                              kBox, k.h));
     }
 }
 
