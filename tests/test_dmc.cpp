@@ -1239,6 +1239,12 @@ struct HoledBox {
     double size, h;
 };
 
+// A box of half-size 0.55 with a round hole through it, as formula text.
+std::string roundHoleBox(const HoledBox& k) {
+    const auto l = boxAxes(k.axes, k.centre);
+    return "max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(k.size) + "-sqrt(" + l[0] + "^2+" + l[1] + "^2))";
+}
+
 // One closed piece with one hole through it.
 void requireOnePieceOfGenusOne(const Mesh& m) {
     requireClosed(m);
@@ -1395,11 +1401,33 @@ TEST_CASE("a hole under a cell wide slantwise through a box is kept through the 
     };
     for (const HoledBox& k : cases) {
         INFO("hole " << 2 * k.size / k.h << " H wide, h " << k.h);
-        const auto l = boxAxes(k.axes, k.centre);
-        requireOnePieceOfGenusOne(meshFormula("max(max(abs" + l[0] + ",abs" + l[1] + ",abs" + l[2] + ")-0.55, " + num(k.size) + "-sqrt(" +
-                                                  l[0] + "^2+" + l[1] + "^2))",
-                                              kBox, k.h));
+        requireOnePieceOfGenusOne(meshFormula(roundHoleBox(k), kBox, k.h));
     }
+}
+
+TEST_CASE("random boxes with a hole under a cell wide through them keep it") {
+    // Rotated boxes with a round hole 0.3-1 H wide at random orientations, offsets and spacings:
+    // marching cubes loses nearly every hole. Without the bent pierced-face path and the straight
+    // bridge's parting test, 12 of these 100 came out with the hole closed or an extra handle; 1
+    // with them.
+    std::mt19937 rng(6767);
+    std::uniform_real_distribution<double> angle(0, 2 * kPi), shift(-0.05, 0.05), spacing(0.08, 0.25), width(0.3, 1.0);
+    const int trials = 100;
+    int kept = 0;
+    for (int trial = 0; trial < trials; ++trial) {
+        const Rotation R = eulerRotation(angle(rng), angle(rng), angle(rng));
+        HoledBox k{{Vec3d(R[0][0], R[1][0], R[2][0]), Vec3d(R[0][1], R[1][1], R[2][1]), Vec3d(R[0][2], R[1][2], R[2][2])},
+                   Vec3d(shift(rng), shift(rng), shift(rng)),
+                   0,
+                   spacing(rng)};
+        k.size = width(rng) * k.h / 2;
+        INFO("trial " << trial << ": hole " << 2 * k.size / k.h << " H wide, h " << k.h);
+        const Mesh m = meshFormula(roundHoleBox(k), kBox, k.h);
+        requireClosed(m);
+        kept += countComponents(m) == 1 && eulerCharacteristic(m) == 0;
+    }
+    WARN("kept " << kept << " of " << trials);
+    CHECK(kept >= 97);
 }
 
 TEST_CASE("a concave corner 1.4 cells below a notch's rim is kept, not cut off by bridging") {
