@@ -703,12 +703,13 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 // With `to` (the other node of a diagonal the part joins), a node whose Ω the
                 // samples miss (the part only clips a corner or runs along an edge of it) may move
                 // onto the joining segment (or `path`) where it meets its Ω, if that point is in the part.
-                // Node n moving by `off` becomes `best` if it lands nearer `middle` than `best` does
-                // — unless the move would make one of its edges hide what it showed (a crack's
-                // node pulled into the solid beside it), or n stands at a feature.
                 // The inside node a straight bridge joins p to, if the bridge may be one the lattice
                 // does not need (see bridgeTo).
                 const Vec3i* joinedAlready = nullptr;
+                // Node n moving by `off` becomes `best` if it lands nearer `middle` than `best` does
+                // — unless the move would make one of its edges hide what it showed (a crack's
+                // node pulled into the solid beside it), n stands at a feature, or n alone joins
+                // outside nodes the field joins where the bridge is one the lattice does not need.
                 auto consider = [&](const Coord& n, const Vec3f& off, const Vec3d& middle, std::optional<Bridge>& best,
                                     double& bestDistance) {
                     const Vec3d to = frame.nodeWorld(Vec3i(n.x(), n.y(), n.z())) + Vec3d(off);
@@ -810,11 +811,11 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                             // A hole thinner than a cell through a solid pierces the face slantwise:
                             // the segment from the node in the hole, where the lattice's hole ends,
                             // to the node beyond leaves it, and the path bends (44 of 240 random
-                            // boxes with a hole 0.3-1 H wide were wrong, 12 now). Only from such an end:
-                            // the outside either side of a sheet a cell thick is another pierced
-                            // face, and the search spends its budget there (smoke_fog at its voxel
-                            // size: 35 % more thin-search samples from every outside node, 2.6 %
-                            // from these).
+                            // boxes with a hole 0.3-1 H wide were wrong, 12 after this, 8 with every
+                            // pair asked in partsJoined). Only from such an end: the outside either
+                            // side of a sheet a cell thick is another pierced face, and the search
+                            // spends its budget there (smoke_fog with every cell searched: 35 % more
+                            // thin-search samples from every outside node, 2.6 % from these).
                             std::vector<Vec3d> path;
                             if (edgeRuns.joinedNearby(pPos, qPos, pInside, evaluated, EdgeRuns::kRimReach, &path) && !latticeJoins(q))
                                 bridge(between, (pPos + qPos) * 0.5, &qPos, &path);
@@ -847,15 +848,14 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     if (onPSide(pPos, qPos, steps)) {
                         // Not by an outside node that alone joins outside nodes around it which
                         // the field joins, where the lattice joins p and q already: the one node in
-                        // a hole under a cell wide through a plate two cells thick was so moved
+                        // a hole about a cell wide through a plate two cells thick was so moved
                         // into the plate, to join two of its nodes across a face beside the hole,
                         // and the hole closed (2 of 60 random such plates, which marching cubes
                         // kept open). Where only the bridge joins p and q, it still may.
                         joinedAlready = pInside ? &q : nullptr;
                         bridge(between, (pPos + qPos) * 0.5, &qPos);
                         joinedAlready = nullptr;
-                    }
-                    else if ((pMoved || bentFromRest) && pInside && bentJoins() && !latticeJoins(q))
+                    } else if ((pMoved || bentFromRest) && pInside && bentJoins() && !latticeJoins(q))
                         bridge(between, (pPos + qPos) * 0.5, &qPos, std::max({std::abs(q.x), std::abs(q.y), std::abs(q.z)}) > 1 ? nullptr : &path);
                     else if (viaPoint && pInside && !latticeJoins(q))
                         bridgeViaPoint(qPos, between);
