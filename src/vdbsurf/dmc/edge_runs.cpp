@@ -180,30 +180,6 @@ bool EdgeRuns::joinedNearby(const Vec3d& a, const Vec3d& b, bool inside, std::ui
     return false;
 }
 
-bool latticePathNear(const Coord& from, const Coord& to, int box, int length, bool faceDiagonals,
-                     const std::function<bool(const Coord&)>& onSide) {
-    const int width = 2 * box + 1;
-    auto index = [&](const Coord& d) { return std::size_t((d.x() + box) + width * ((d.y() + box) + width * (d.z() + box))); };
-    std::vector<std::uint8_t> seen(std::size_t(width) * std::size_t(width) * std::size_t(width), 0);
-    std::vector<Coord> queue{from};
-    std::vector<int> steps{0};
-    seen[index(from)] = 1;
-    const int reach = faceDiagonals ? 18 : 6;
-    for (std::size_t head = 0; head < queue.size(); ++head) {
-        if (queue[head] == to) return true;
-        if (steps[head] == length) continue;
-        for (int k = 0; k < reach; ++k) {
-            const Coord e = queue[head] + faceNeighbourSteps()[std::size_t(k)];
-            if (std::abs(e.x()) > box || std::abs(e.y()) > box || std::abs(e.z()) > box || seen[index(e)]) continue;
-            seen[index(e)] = 1;
-            if (!onSide(e)) continue;
-            queue.push_back(e);
-            steps.push_back(steps[head] + 1);
-        }
-    }
-    return false;
-}
-
 bool EdgeRuns::partsJoined(const Coord& c, bool inside, NodeStates& nodes, std::uint64_t& evaluated) const {
     // The nodes within three steps of c, c left out; the outside joins across face diagonals too,
     // as marching cubes joins it.

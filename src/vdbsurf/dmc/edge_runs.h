@@ -12,7 +12,7 @@
 
 #include <array>
 #include <cstdint>
-#include <functional>
+#include <cstdlib>
 #include <vector>
 
 namespace vdbsurf {
@@ -57,9 +57,31 @@ inline const std::array<openvdb::Coord, 18>& faceNeighbourSteps() {
 // Does the lattice join the nodes at offsets `from` and `to` from a centre through nodes that
 // `onSide` accepts (asked by offset), stepping along edges or, with `faceDiagonals`, across faces'
 // diagonals too (as marching cubes joins the outside), within `box` steps of the centre along
-// each axis, by a path of at most `length` steps?
-bool latticePathNear(const openvdb::Coord& from, const openvdb::Coord& to, int box, int length, bool faceDiagonals,
-                     const std::function<bool(const openvdb::Coord&)>& onSide);
+// each axis, by a path of at most `length` steps? (A template: bridging asks it for many nodes,
+// and `onSide` is called for every node the search reaches.)
+template <typename OnSide>
+bool latticePathNear(const openvdb::Coord& from, const openvdb::Coord& to, int box, int length, bool faceDiagonals, const OnSide& onSide) {
+    const int width = 2 * box + 1;
+    auto index = [&](const openvdb::Coord& d) { return std::size_t((d.x() + box) + width * ((d.y() + box) + width * (d.z() + box))); };
+    std::vector<std::uint8_t> seen(std::size_t(width) * std::size_t(width) * std::size_t(width), 0);
+    std::vector<openvdb::Coord> queue{from};
+    std::vector<int> steps{0};
+    seen[index(from)] = 1;
+    const int reach = faceDiagonals ? 18 : 6;
+    for (std::size_t head = 0; head < queue.size(); ++head) {
+        if (queue[head] == to) return true;
+        if (steps[head] == length) continue;
+        for (int k = 0; k < reach; ++k) {
+            const openvdb::Coord e = queue[head] + faceNeighbourSteps()[std::size_t(k)];
+            if (std::abs(e.x()) > box || std::abs(e.y()) > box || std::abs(e.z()) > box || seen[index(e)]) continue;
+            seen[index(e)] = 1;
+            if (!onSide(e)) continue;
+            queue.push_back(e);
+            steps.push_back(steps[head] + 1);
+        }
+    }
+    return false;
+}
 
 // Does `moved` hold a node whose move can change what moving c does (EdgeRuns::moveEffect): one
 // of the 26 around c, or two steps from it along an axis?

@@ -650,12 +650,14 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                 const bool pInside = insideAt(0, 0, 0);
                 // Does p end a part of its side thinner than a cell, or stand alone (at most one of
                 // its six neighbours on its side)?
-                int ownSide = 0;
-                for (int k = 0; k < 6; ++k) {
-                    const Coord e = axisStep(k / 2, k % 2 ? 1 : -1);
-                    ownSide += insideAt(e.x(), e.y(), e.z()) == pInside;
-                }
-                const bool endsThinPart = ownSide <= 1;
+                auto endsThinPart = [&] {
+                    int ownSide = 0;
+                    for (int k = 0; k < 6; ++k) {
+                        const Coord e = axisStep(k / 2, k % 2 ? 1 : -1);
+                        ownSide += insideAt(e.x(), e.y(), e.z()) == pInside;
+                    }
+                    return ownSide <= 1;
+                };
                 bool pMoved = false;
                 const Vec3d pPos = position(0, 0, 0, pMoved);
                 // Does the segment from a to b stay on p's side at `steps` steps?
@@ -807,7 +809,7 @@ std::uint64_t bridgeThinParts(const Field& field, const Lattice& lattice, const 
                     if (unlessJoined) {
                         if (onPSide(pPos, qPos, steps)) {
                             if (!latticeJoins(q)) bridge(between, (pPos + qPos) * 0.5, &qPos);
-                        } else if (endsThinPart) {
+                        } else if (endsThinPart()) {
                             // A hole thinner than a cell through a solid pierces the face slantwise:
                             // the segment from the node in the hole, where the lattice's hole ends,
                             // to the node beyond leaves it, and the path bends (44 of 240 random
